@@ -1,0 +1,44 @@
+"""jaxarm: smooth, collision-free joint paths for planar arms, searched by batched PSO in JAX.
+
+Quick start::
+
+    import jaxarm
+    problem = jaxarm.load_scenario("paper-case-2")
+    jaxarm.fitness(problem, [66.7388, -28.1028, -9.8855])   # 0.1946, the paper's Table 3
+"""
+
+from jaxarm.arm import Arm, inverse_kinematics, joint_positions
+from jaxarm.problem import (
+    COLLISION_MODES,
+    Evaluation,
+    Problem,
+    coefficients,
+    collides,
+    fitness,
+    joint_path,
+    travelling_distance,
+    violation,
+)
+from jaxarm.scenarios import ScenarioError, available as available_scenarios, load_scenario
+from jaxarm.world import World
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Arm",
+    "COLLISION_MODES",
+    "Evaluation",
+    "Problem",
+    "ScenarioError",
+    "World",
+    "available_scenarios",
+    "coefficients",
+    "collides",
+    "fitness",
+    "inverse_kinematics",
+    "joint_path",
+    "joint_positions",
+    "load_scenario",
+    "travelling_distance",
+    "violation",
+]

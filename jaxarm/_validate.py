@@ -1,0 +1,51 @@
+"""Input checks shared by the public constructors: every error names the field and the value."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def finite_vector(field: str, value, length: int | None = None) -> np.ndarray:
+    """``value`` as a 1-D float64 array of finite numbers.
+
+    Args:
+      field: the name used in error messages, e.g. ``"start"``.
+      value: a sequence of numbers.
+      length: the required length, or None for any.
+
+    Raises:
+      ValueError: naming ``field`` and the offending value.
+    """
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{field} must be a sequence of numbers, got {value!r}") from None
+    if array.ndim != 1:
+        raise ValueError(f"{field} must be one-dimensional, got shape {array.shape}: {value!r}")
+    if length is not None and array.size != length:
+        raise ValueError(f"{field} must have {length} values, got {array.size}: {value!r}")
+    bad = ~np.isfinite(array)
+    if bad.any():
+        index = int(np.argmax(bad))
+        raise ValueError(f"{field}[{index}] must be finite, got {float(array[index])!r}")
+    return array
+
+
+def finite_scalar(field: str, value) -> float:
+    """``value`` as a finite float, or a ValueError naming ``field``."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{field} must be a number, got {value!r}") from None
+    if not np.isfinite(number):
+        raise ValueError(f"{field} must be finite, got {value!r}")
+    return number
+
+
+def positive_int(field: str, value, minimum: int = 1) -> int:
+    """``value`` as an int >= ``minimum``, or a ValueError naming ``field``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{field} must be an integer, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{field} must be >= {minimum}, got {value!r}")
+    return int(value)

@@ -1,0 +1,120 @@
+"""Planar serial arms: link lengths, forward kinematics (paper eqs. 1-4), inverse kinematics.
+
+The base sits at the origin. Joint angles are relative: link k points along the absolute
+angle ``phi_k = theta_1 + ... + theta_k``, and joint k's position is the previous one plus
+``l_k (cos phi_k, sin phi_k)``. Link k is the straight segment between positions k-1 and k.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm._validate import finite_vector
+
+
+@dataclasses.dataclass(frozen=True)
+class Arm:
+    """A planar serial arm.
+
+    Args:
+      lengths: link lengths (cm), base first; any number of links, each finite and > 0.
+
+    Example:
+      >>> Arm(lengths=(30.0, 30.0, 20.0)).n_joints
+      3
+    """
+
+    lengths: tuple[float, ...]
+
+    def __post_init__(self):
+        lengths = finite_vector("arm.lengths", self.lengths)
+        if lengths.size == 0:
+            raise ValueError("arm.lengths must name at least one link, got []")
+        for index, length in enumerate(lengths):
+            if length <= 0:
+                raise ValueError(f"arm.lengths[{index}] must be > 0, got {float(length)!r}")
+        object.__setattr__(self, "lengths", tuple(float(v) for v in lengths))
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.lengths)
+
+    @property
+    def reach(self) -> float:
+        """Largest distance from the base the end-effector can reach (cm)."""
+        return float(sum(self.lengths))
+
+
+def joint_positions(lengths, theta) -> jnp.ndarray:
+    """Joint positions, base first, for any leading batch shape (paper eqs. 1-3).
+
+    Args:
+      lengths: link lengths, shape (n_joints,).
+      theta: relative joint angles (rad), shape (..., n_joints).
+
+    Returns:
+      Positions, shape (..., n_joints + 1, 2); index 0 is the base (0, 0), the last the
+      end-effector.
+    """
+    theta = jnp.asarray(theta)
+    lengths = jnp.asarray(lengths, dtype=theta.dtype)
+    absolute = jnp.cumsum(theta, axis=-1)
+    steps = jnp.stack([lengths * jnp.cos(absolute), lengths * jnp.sin(absolute)], axis=-1)
+    base = jnp.zeros(steps.shape[:-2] + (1, 2), dtype=steps.dtype)
+    return jnp.concatenate([base, jnp.cumsum(steps, axis=-2)], axis=-2)
+
+
+def inverse_kinematics(arm: Arm, x: float, y: float, phi: float, elbow: int = 1) -> np.ndarray:
+    """Joint angles that put a 3-link arm's end-effector at (x, y) with orientation phi.
+
+    The wrist (joint 2) is placed at ``(x, y) - l3 (cos phi, sin phi)``; the first two links
+    reach it with the closed-form two-link solution whose elbow angle has the sign ``elbow``.
+
+    Args:
+      arm: a 3-link arm.
+      x, y: end-effector position (cm).
+      phi: end-effector orientation, the absolute angle of the last link (rad).
+      elbow: +1 or -1, the sign of joint 2.
+
+    Returns:
+      Joint angles (rad), shape (3,), each wrapped to (-pi, pi].
+
+    Raises:
+      ValueError: if the arm does not have 3 links, the pose is non-finite, or it is out of reach.
+    """
+    if arm.n_joints != 3:
+        raise ValueError(
+            f"inverse kinematics needs a 3-link arm, got arm.lengths with {arm.n_joints} links"
+        )
+    for name, value in (("x", x), ("y", y), ("phi", phi)):
+        if not math.isfinite(float(value)):
+            raise ValueError(f"pose.{name} must be finite, got {value!r}")
+    if elbow not in (1, -1):
+        raise ValueError(f"pose.elbow must be +1 or -1, got {elbow!r}")
+    l1, l2, l3 = arm.lengths
+    wrist_x = x - l3 * math.cos(phi)
+    wrist_y = y - l3 * math.sin(phi)
+    distance_sq = wrist_x**2 + wrist_y**2
+    cos_elbow = (distance_sq - l1**2 - l2**2) / (2 * l1 * l2)
+    if not -1.0 <= cos_elbow <= 1.0:
+        raise ValueError(
+            f"pose (x={x}, y={y}, phi={phi}) is unreachable: the wrist at "
+            f"({wrist_x:.4g}, {wrist_y:.4g}) is {math.sqrt(distance_sq):.4g} cm from the base, "
+            f"outside [{abs(l1 - l2):.4g}, {l1 + l2:.4g}]"
+        )
+    theta2 = elbow * math.acos(cos_elbow)
+    theta1 = math.atan2(wrist_y, wrist_x) - math.atan2(
+        l2 * math.sin(theta2), l1 + l2 * math.cos(theta2)
+    )
+    theta3 = phi - theta1 - theta2
+    return np.array([_wrap(theta1), theta2, _wrap(theta3)])
+
+
+def _wrap(angle: float) -> float:
+    """Angle wrapped to (-pi, pi]."""
+    wrapped = math.remainder(angle, 2 * math.pi)
+    return math.pi if wrapped == -math.pi else wrapped
+

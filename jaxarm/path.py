@@ -1,0 +1,181 @@
+"""Polynomial joint paths with rest-to-rest boundary conditions (paper eqs. 6-11, 5).
+
+Each joint follows ``theta(r) = sum_n a_n r^n`` for normalised time ``r in [0, 1]``, with
+``theta(0) = theta_i``, ``theta(1) = theta_f`` and zero first and second derivatives at both
+ends. For degree d those six conditions fix ``a_0 .. a_5``; the ``d - 5`` coefficients
+``a_6 .. a_d`` of each joint are free. Because the conditions are linear, every path is
+
+    theta(r) = theta_i + (theta_f - theta_i) h(r) + sum_{p=6..d} a_p g_p(r),
+
+with the quintic ``h(r) = 10 r^3 - 15 r^4 + 6 r^5`` and ``g_p(r) = r^p + (terms of degree 3-5)``
+vanishing with two derivatives at both ends (``g_6(r) = r^3 (r - 1)^3``). For d = 6 this is
+exactly the paper's eq. 10. Evaluating through the basis keeps float32 well conditioned: the
+coefficients themselves can reach hundreds while the angles stay small.
+
+Free parameters are ordered by power, then joint: ``x = [a6_1 .. a6_J, a7_1 .. a7_J, ...]``,
+so degree 6 gives the paper's ``[a61 a62 a63]``.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+MIN_DEGREE = 6
+
+
+def n_free_per_joint(degree: int) -> int:
+    """Free coefficients per joint, ``degree - 5``."""
+    return degree - 5
+
+
+def basis_coefficients(degree: int, order: int = 0) -> np.ndarray:
+    """Polynomial coefficients of the ``order``-th derivative of the basis ``[h, g_6, ..., g_d]``.
+
+    Returns:
+      Array of shape (degree - 4, degree + 1), ascending powers (zero-padded at the top for
+      derivatives); row 0 is ``h``.
+    """
+    # a3, a4, a5 solve [[1,1,1],[3,4,5],[6,12,20]] a = b for the end conditions at r = 1;
+    # the inverse matrix below is exact.
+    inverse = np.array([[10.0, -4.0, 0.5], [-15.0, 7.0, -1.0], [6.0, -3.0, 0.5]])
+    rows = []
+    h = np.zeros(degree + 1)
+    h[3:6] = inverse @ np.array([1.0, 0.0, 0.0])
+    rows.append(h)
+    for power in range(MIN_DEGREE, degree + 1):
+        g = np.zeros(degree + 1)
+        g[power] = 1.0
+        g[3:6] = inverse @ -np.array([1.0, power, power * (power - 1)])
+        rows.append(g)
+    coefficients = np.stack(rows)
+    for _ in range(order):
+        coefficients = np.pad(coefficients[:, 1:] * np.arange(1, degree + 1), ((0, 0), (0, 1)))
+    return coefficients
+
+
+def powers(r, degree: int):
+    """``r^0 .. r^degree`` by repeated multiplication (exact for integer exponents, no pow).
+
+    Args:
+      r: shape (..., n_r); NumPy in float64 NumPy, JAX in JAX.
+
+    Returns:
+      Array of shape (..., n_r, degree + 1).
+    """
+    xp = np if isinstance(r, np.ndarray) else jnp
+    columns = [xp.ones_like(r), r]
+    for _ in range(degree - 1):
+        columns.append(columns[-1] * r)
+    return xp.stack(columns[: degree + 1], axis=-1)
+
+
+def basis_values(degree: int, r, order: int = 0, r_powers=None):
+    """Values of the ``order``-th derivative of ``[h, g_6, ..., g_d]`` at ``r``.
+
+    Args:
+      degree: polynomial degree d >= 6.
+      r: normalised times, shape (n_r,) or (..., n_r). A NumPy array (or list) is evaluated
+        in float64 NumPy, a compile-time constant under jit; a JAX array in JAX.
+      order: derivative order.
+      r_powers: ``powers(r, degree)``, to share between several orders.
+
+    Returns:
+      Array of shape r.shape + (degree - 4,).
+    """
+    if not isinstance(r, jax.Array):
+        r = np.asarray(r, dtype=np.float64)
+    if r_powers is None:
+        r_powers = powers(r, degree)
+    coefficients = basis_coefficients(degree, order)
+    if isinstance(r_powers, np.ndarray):
+        return r_powers @ coefficients.T
+    # Unrolled over the powers: elementwise work fuses, a contraction over 7 terms does not.
+    coefficients = jnp.asarray(coefficients, dtype=r_powers.dtype)
+    return sum(r_powers[..., k, None] * coefficients[:, k] for k in range(degree + 1))
+
+
+def free_by_joint(x, n_joints: int):
+    """Reshape free parameters (..., n_free) to (..., degree - 5, n_joints)."""
+    return x.reshape(x.shape[:-1] + (-1, n_joints))
+
+
+def joint_angles(start, goal, x, basis, order: int = 0):
+    """Joint angles, or one of their derivatives, at the times a basis was evaluated at.
+
+    Args:
+      start, goal: joint angles at r = 0 and r = 1, shape (n_joints,).
+      x: free parameters, shape (..., n_free).
+      basis: ``basis_values(degree, r, order)``, shape (n_r, degree - 4) shared by the batch,
+        or (..., n_r, degree - 4) with the batch shape of ``x``.
+      order: the derivative order the basis was evaluated with (the constant ``start`` term
+        only appears for order 0).
+
+    Returns:
+      Array of shape (..., n_r, n_joints).
+    """
+    start = jnp.asarray(start, dtype=x.dtype)
+    goal = jnp.asarray(goal, dtype=x.dtype)
+    basis = jnp.asarray(basis, dtype=x.dtype)
+    free = free_by_joint(x, start.shape[-1])
+    # An unrolled sum over the few free powers: elementwise, so it fuses with what follows
+    # (a batched contraction over such small axes compiles to a slow loop on CPU).
+    theta = basis[..., :1] * (goal - start)
+    for m in range(free.shape[-2]):
+        theta = theta + basis[..., m + 1, None] * free[..., m, None, :]
+    return theta + start if order == 0 else theta
+
+
+def coefficients(start, goal, x, degree: int):
+    """Full polynomial coefficients ``a_0 .. a_d`` of each joint (paper eq. 10 for d = 6).
+
+    Args:
+      start, goal: joint angles, shape (n_joints,).
+      x: free parameters, shape (..., n_free).
+      degree: polynomial degree.
+
+    Returns:
+      Array of shape (..., n_joints, degree + 1), ascending powers.
+    """
+    start = jnp.asarray(start, dtype=x.dtype)
+    goal = jnp.asarray(goal, dtype=x.dtype)
+    basis = jnp.asarray(basis_coefficients(degree), dtype=x.dtype)
+    free = free_by_joint(x, start.shape[-1])
+    result = jnp.einsum("...mj,mn->...jn", free, basis[1:]) + (goal - start)[:, None] * basis[0]
+    return result.at[..., 0].add(start)
+
+
+def simpson_weights(n_samples: int) -> np.ndarray:
+    """Composite Simpson weights over ``n_samples`` (odd) equally spaced points of [0, 1]."""
+    weights = np.ones(n_samples)
+    weights[1:-1:2] = 4.0
+    weights[2:-1:2] = 2.0
+    return weights / (3.0 * (n_samples - 1))
+
+
+def travelling_distance(velocity, weights):
+    """Joint angle travelling distance summed over joints (paper eq. 5 by Simpson's rule).
+
+    Args:
+      velocity: ``d theta / d r`` at the sample points, shape (..., n_samples, n_joints).
+      weights: ``simpson_weights(n_samples)``, shape (n_samples,).
+
+    Returns:
+      Array of shape (...,): ``sum_k integral_0^1 sqrt(1 + theta_k'(r)^2) dr``.
+    """
+    arc = jnp.sqrt(1.0 + velocity * velocity)
+    return jnp.einsum("...sj,s->...", arc, jnp.asarray(weights, dtype=velocity.dtype))
+
+
+def squared_jerk(jerk, weights):
+    """Integrated squared jerk summed over joints, ``sum_k integral (theta_k''')^2 dr``.
+
+    Args:
+      jerk: ``d^3 theta / d r^3`` at the sample points, shape (..., n_samples, n_joints).
+      weights: Simpson weights, shape (n_samples,).
+
+    Returns:
+      Array of shape (...,).
+    """
+    return jnp.einsum("...sj,s->...", jerk * jerk, jnp.asarray(weights, dtype=jerk.dtype))

@@ -1,0 +1,333 @@
+"""The planning problem and its batched, jit-compiled evaluation (paper eqs. 5, 17).
+
+A ``Problem`` holds the arm, the start and goal postures, the obstacle world and the path
+settings. It splits into a static ``ProblemSpec`` (sizes and modes: what a compiled program
+depends on) and ``ProblemArrays`` (angles, lengths, obstacles: data), so problems that differ
+only in data share one compiled program.
+
+Every public function takes free parameters ``x`` of shape (..., n_free), any leading batch
+shape, in float32 or float64 (whatever ``x`` is; integers become the default float).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm import collision as collision_lib
+from jaxarm import path
+from jaxarm import world as world_lib
+from jaxarm._validate import finite_scalar, finite_vector, positive_int
+from jaxarm.arm import Arm
+from jaxarm.world import World, WorldArrays
+
+COLLISION_MODES = ("sampled", "certified")
+
+
+class ProblemSpec(NamedTuple):
+    """The static part of a problem: everything a compiled program is specialised on."""
+
+    n_joints: int
+    degree: int
+    n_samples: int
+    collision: str
+    capacities: tuple[int, int, int]
+    refine_intervals: int
+    refine_factor: int
+
+
+class ProblemArrays(NamedTuple):
+    """The data part of a problem (a pytree of float64 NumPy arrays)."""
+
+    lengths: np.ndarray  # shape=(n_joints,)
+    start: np.ndarray  # shape=(n_joints,), rad
+    goal: np.ndarray  # shape=(n_joints,), rad
+    world: WorldArrays
+
+
+@dataclasses.dataclass(frozen=True)
+class Problem:
+    """A point-to-point planning problem for a planar arm among obstacles.
+
+    Args:
+      arm: the arm.
+      start, goal: joint angles (rad), shape (n_joints,).
+      world: the obstacles.
+      degree: polynomial degree d >= 6 (d - 5 free coefficients per joint).
+      n_samples: odd number of points of r in [0, 1] for Simpson's rule and the sampled check.
+      collision: ``"sampled"`` (paper) or ``"certified"`` (continuous guarantee).
+      init_low, init_high: range the initial swarm is drawn from, a scalar or shape (n_free,).
+      name, description: labels for reports.
+      capacities: obstacle slots (circles, polygons, vertices per polygon); default from world.
+      refine_intervals, refine_factor: certified mode's subdivision of the worst intervals.
+
+    Raises:
+      ValueError: naming the field and value, including a start or goal posture that collides.
+
+    Example:
+      >>> problem = Problem(arm=Arm((30.0, 30.0, 20.0)), start=[0.0, 0.5, 0.5],
+      ...                   goal=[1.0, 0.5, 0.5])
+      >>> problem.n_free
+      3
+    """
+
+    arm: Arm
+    start: tuple[float, ...]
+    goal: tuple[float, ...]
+    world: World = World()
+    degree: int = 6
+    n_samples: int = 101
+    collision: str = "sampled"
+    init_low: float | tuple[float, ...] = -100.0
+    init_high: float | tuple[float, ...] = 100.0
+    name: str = "custom"
+    description: str = ""
+    capacities: tuple[int, int, int] | None = None
+    refine_intervals: int = 16
+    refine_factor: int = 8
+
+    def __post_init__(self):
+        if not isinstance(self.arm, Arm):
+            raise ValueError(f"arm must be a jaxarm.Arm, got {self.arm!r}")
+        if not isinstance(self.world, World):
+            raise ValueError(f"world must be a jaxarm.World, got {self.world!r}")
+        n_joints = self.arm.n_joints
+        set_field = functools.partial(object.__setattr__, self)
+        set_field("start", tuple(finite_vector("start", self.start, n_joints).tolist()))
+        set_field("goal", tuple(finite_vector("goal", self.goal, n_joints).tolist()))
+        degree = positive_int("degree", self.degree, minimum=path.MIN_DEGREE)
+        set_field("degree", degree)
+        n_samples = positive_int("n_samples", self.n_samples, minimum=3)
+        if n_samples % 2 == 0:
+            raise ValueError(f"n_samples must be odd for Simpson's rule, got {n_samples}")
+        if self.collision not in COLLISION_MODES:
+            raise ValueError(f"collision must be one of {COLLISION_MODES}, got {self.collision!r}")
+        positive_int("refine_intervals", self.refine_intervals, minimum=0)
+        positive_int("refine_factor", self.refine_factor, minimum=1)
+        low, high = (self._bound(name) for name in ("init_low", "init_high"))
+        set_field("init_low", low)
+        set_field("init_high", high)
+        bad = np.nonzero(~(np.asarray(self.bounds()[0]) < np.asarray(self.bounds()[1])))[0]
+        if bad.size:
+            raise ValueError(
+                f"init_low must be < init_high, got {low!r} and {high!r} (index {int(bad[0])})"
+            )
+        capacities = self.capacities or self.world.capacities()
+        self.world.pack(capacities)  # raises if the capacities are too small
+        set_field("capacities", tuple(int(c) for c in capacities))
+        for which in ("start", "goal"):
+            self._check_posture(which)
+
+    def _bound(self, name: str):
+        value = getattr(self, name)
+        if np.ndim(value) == 0:
+            return finite_scalar(name, value)
+        return tuple(finite_vector(name, value, self.n_free).tolist())
+
+    def _check_posture(self, which: str) -> None:
+        theta = jnp.asarray(getattr(self, which))
+        depth = np.asarray(collision_lib.penetration(self.arm.lengths, self.arrays.world, theta))
+        if np.any(depth > 0):
+            link, slot = np.unravel_index(int(np.argmax(depth > 0)), depth.shape)
+            name = self.world.slot_names(self.capacities)[slot]
+            raise ValueError(
+                f"{which} posture {list(getattr(self, which))} collides: link {link + 1} "
+                f"overlaps {name} by {depth[link, slot]:.4g} cm"
+            )
+
+    @property
+    def n_joints(self) -> int:
+        return self.arm.n_joints
+
+    @property
+    def n_free(self) -> int:
+        """Number of free parameters, ``n_joints * (degree - 5)``."""
+        return self.n_joints * path.n_free_per_joint(self.degree)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Initial-swarm range as two float64 arrays of shape (n_free,)."""
+        return tuple(
+            np.broadcast_to(np.asarray(v, dtype=np.float64), (self.n_free,)).copy()
+            for v in (self.init_low, self.init_high)
+        )
+
+    @property
+    def spec(self) -> ProblemSpec:
+        return ProblemSpec(
+            n_joints=self.n_joints,
+            degree=self.degree,
+            n_samples=self.n_samples,
+            collision=self.collision,
+            capacities=self.capacities,
+            refine_intervals=self.refine_intervals,
+            refine_factor=self.refine_factor,
+        )
+
+    @functools.cached_property
+    def arrays(self) -> ProblemArrays:
+        return ProblemArrays(
+            lengths=np.asarray(self.arm.lengths),
+            start=np.asarray(self.start),
+            goal=np.asarray(self.goal),
+            world=self.world.pack(self.capacities),
+        )
+
+    def replace(self, **changes) -> "Problem":
+        """A copy with some fields changed (and validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    def summary(self) -> str:
+        """A few human-readable lines describing the problem."""
+        world = self.world
+        return "\n".join(
+            [
+                f"{self.name}: {self.description}".rstrip(": "),
+                f"  arm      {self.n_joints} links {list(self.arm.lengths)} cm",
+                f"  start    {np.round(self.start, 4).tolist()} rad",
+                f"  goal     {np.round(self.goal, 4).tolist()} rad",
+                f"  world    {len(world.circles)} circles, {len(world.boxes)} boxes, "
+                f"{len(world.polygons)} polygons",
+                f"  path     degree {self.degree} ({self.n_free} free coefficients), "
+                f"{self.n_samples} samples, {self.collision} collision check",
+                f"  search   init range [{_describe(self.init_low)}, {_describe(self.init_high)}]",
+            ]
+        )
+
+
+def _describe(bound) -> str:
+    return f"{bound:g}" if np.ndim(bound) == 0 else str(list(bound))
+
+
+class Evaluation(NamedTuple):
+    """Everything the optimizer needs about a batch of paths."""
+
+    fitness: jax.Array  # shape=(...,), paper eq. 17: 0 on collision, else 1 / distance
+    violation: jax.Array  # shape=(...,), >= 0, 0 iff collision-free
+    distance: jax.Array  # shape=(...,), joint angle travelling distance (eq. 5)
+
+
+def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x) -> Evaluation:
+    """Fitness, violation and travelling distance of paths, sharing one pass over the samples.
+
+    Pure and traceable: ``spec`` must be static under jit, ``arrays`` and ``x`` may be traced.
+
+    Args:
+      spec: ``problem.spec``.
+      arrays: ``problem.arrays``.
+      x: free parameters, shape (..., n_free).
+
+    Returns:
+      ``Evaluation`` of arrays of shape (...,).
+    """
+    r = np.linspace(0.0, 1.0, spec.n_samples)
+    step = 1.0 / (spec.n_samples - 1)
+    velocity = path.joint_angles(
+        arrays.start, arrays.goal, x, path.basis_values(spec.degree, r, 1), order=1
+    )
+    distance = path.travelling_distance(velocity, path.simpson_weights(spec.n_samples))
+    theta = path.joint_angles(arrays.start, arrays.goal, x, path.basis_values(spec.degree, r))
+    segment_start, segment_end = collision_lib.link_segments(arrays.lengths, theta)
+    if spec.collision == "sampled":
+        depth = world_lib.penetration(segment_start, segment_end, arrays.world)
+        violation = depth.sum(axis=(-3, -2, -1)) * step
+    else:
+        separation = world_lib.separation(segment_start, segment_end, arrays.world)
+        deficit = collision_lib.certified_deficit(
+            arrays.lengths, arrays.world, arrays.start, arrays.goal, x,
+            separation.min(axis=-1), spec.degree, spec.refine_intervals, spec.refine_factor,
+        )
+        depth = jnp.maximum(-separation, 0.0).sum(axis=(-3, -2, -1))
+        violation = (depth + jnp.maximum(deficit, 0.0).sum(axis=-1)) * step
+    fitness = jnp.where(violation > 0, 0.0, 1.0 / distance).astype(x.dtype)
+    return Evaluation(fitness=fitness, violation=violation, distance=distance)
+
+
+_evaluate = jax.jit(evaluate, static_argnums=0)
+
+
+def _as_params(problem: Problem, x) -> jax.Array:
+    if not isinstance(problem, Problem):
+        raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
+    x = jnp.asarray(x)
+    if not jnp.issubdtype(x.dtype, jnp.floating):
+        x = x.astype(jnp.result_type(float))
+    if x.ndim == 0 or x.shape[-1] != problem.n_free:
+        raise ValueError(
+            f"x must have shape (..., {problem.n_free}) for {problem.n_joints} joints and "
+            f"degree {problem.degree}, got shape {x.shape}"
+        )
+    if not isinstance(x, jax.core.Tracer) and not bool(jnp.all(jnp.isfinite(x))):
+        raise ValueError(f"x must be finite, got non-finite values in {np.asarray(x)!r}")
+    return x
+
+
+def fitness(problem: Problem, x) -> jax.Array:
+    """Paper eq. 17: 0 if any link collides, else 1 / (sum of joint travelling distances).
+
+    Args:
+      problem: the problem (its ``collision`` mode decides what colliding means).
+      x: free parameters, shape (..., n_free).
+
+    Returns:
+      Array of shape (...,).
+
+    Example:
+      >>> problem = jaxarm.load_scenario("paper-case-2")
+      >>> float(jaxarm.fitness(problem, [66.7388, -28.1028, -9.8855]))  # doctest: +ELLIPSIS
+      0.1946...
+    """
+    return _evaluate(problem.spec, problem.arrays, _as_params(problem, x)).fitness
+
+
+def violation(problem: Problem, x) -> jax.Array:
+    """How much a path collides (cm, about the integral over r of the penetration depth).
+
+    Args:
+      x: free parameters, shape (..., n_free).
+
+    Returns:
+      Array of shape (...,), >= 0 and exactly 0 iff the path is collision-free.
+    """
+    return _evaluate(problem.spec, problem.arrays, _as_params(problem, x)).violation
+
+
+def collides(problem: Problem, x) -> jax.Array:
+    """Whether any link overlaps any obstacle, in the problem's collision mode; shape (...,)."""
+    return violation(problem, x) > 0
+
+
+def travelling_distance(problem: Problem, x) -> jax.Array:
+    """Joint angle travelling distance summed over joints (paper eq. 5, Simpson); shape (...,)."""
+    return _evaluate(problem.spec, problem.arrays, _as_params(problem, x)).distance
+
+
+def joint_path(problem: Problem, x, r, order: int = 0) -> jax.Array:
+    """Joint angles (or their ``order``-th derivative with respect to r) along a path.
+
+    Args:
+      x: free parameters, shape (..., n_free).
+      r: normalised times in [0, 1], shape (n_r,).
+      order: derivative order, 0 to 3.
+
+    Returns:
+      Array of shape (..., n_r, n_joints).
+    """
+    x = _as_params(problem, x)
+    r = np.asarray(r, dtype=np.float64) if not isinstance(r, jax.Array) else r
+    basis = path.basis_values(problem.degree, r, order)
+    return path.joint_angles(problem.arrays.start, problem.arrays.goal, x, basis, order)
+
+
+def coefficients(problem: Problem, x) -> jax.Array:
+    """All polynomial coefficients ``a_0 .. a_d`` per joint (paper eq. 10 for degree 6).
+
+    Returns:
+      Array of shape (..., n_joints, degree + 1), ascending powers.
+    """
+    x = _as_params(problem, x)
+    return path.coefficients(problem.arrays.start, problem.arrays.goal, x, problem.degree)

@@ -1,0 +1,186 @@
+"""Scenario files (TOML) shipped with jaxarm, and the loader that turns one into a ``Problem``.
+
+Schema (units: cm and rad)::
+
+    name = "paper-case-1"              # optional, defaults to the file name
+    description = "one line"           # optional
+    [arm]
+    lengths = [30.0, 30.0, 20.0]
+    [start]                            # joint angles, or a pose solved by inverse kinematics
+    joints = [-1.33, 2.03, -0.69]      #   (3-link arms only); if both are given, joints win
+    pose = { x = 50.0, y = -10.0, phi = 0.0, elbow = 1 }
+    [goal]                             # same as [start]
+    [search]                           # all optional
+    degree = 6                         # polynomial degree >= 6
+    samples = 101                      # odd
+    collision = "sampled"              # or "certified"
+    init_low = -100.0                  # scalar or one value per free coefficient
+    init_high = 100.0
+    [[obstacles]]                      # any number of these
+    type = "circle"                    # center = [x, y], radius = r
+    type = "box"                       # min = [xmin, ymin], max = [xmax, ymax]
+    type = "polygon"                   # vertices = [[x, y], ...], convex, either order
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+import pathlib
+import tomllib
+
+from jaxarm.arm import Arm, inverse_kinematics
+from jaxarm.problem import Problem
+from jaxarm.world import World
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot be loaded; the message names the file and the key."""
+
+
+_TOP_KEYS = {"name", "description", "units", "arm", "start", "goal", "search", "obstacles"}
+_SEARCH_KEYS = {"degree", "samples", "collision", "init_low", "init_high"}
+_OBSTACLE_KEYS = {
+    "circle": {"type", "center", "radius"},
+    "box": {"type", "min", "max"},
+    "polygon": {"type", "vertices"},
+}
+
+
+def available() -> dict[str, str]:
+    """Shipped scenario names with their one-line descriptions, sorted by name."""
+    out = {}
+    for entry in sorted(importlib.resources.files(__name__).iterdir(), key=lambda e: e.name):
+        if entry.name.endswith(".toml"):
+            data = tomllib.loads(entry.read_text())
+            out[entry.name[: -len(".toml")]] = data.get("description", "")
+    return out
+
+
+def load_scenario(name_or_path: str | pathlib.Path, **overrides) -> Problem:
+    """Load a shipped scenario by name, or a scenario file by path.
+
+    Args:
+      name_or_path: a name from ``available()`` (e.g. ``"paper-case-1"``) or a path to a .toml.
+      **overrides: ``Problem`` fields to replace (e.g. ``collision="certified"``).
+
+    Returns:
+      The ``Problem``.
+
+    Raises:
+      ScenarioError: unknown name, unreadable file, malformed TOML (with line and column),
+        a missing or unknown key, or invalid values (naming the key).
+    """
+    text, source = _read(name_or_path)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise ScenarioError(f"{source}: malformed TOML: {error}") from None
+    try:
+        problem = _problem(data, default_name=pathlib.Path(source).stem)
+        return problem.replace(**overrides) if overrides else problem
+    except ScenarioError as error:
+        raise ScenarioError(f"{source}: {error}") from None
+    except (ValueError, TypeError) as error:
+        raise ScenarioError(f"{source}: {error}") from None
+
+
+def _read(name_or_path) -> tuple[str, str]:
+    candidate = pathlib.Path(name_or_path)
+    if candidate.suffix == ".toml" or candidate.exists():
+        try:
+            return candidate.read_text(), str(candidate)
+        except OSError as error:
+            raise ScenarioError(f"cannot read scenario file {str(candidate)!r}: {error.strerror}")
+    resource = importlib.resources.files(__name__) / f"{name_or_path}.toml"
+    if not resource.is_file():
+        names = ", ".join(available())
+        raise ScenarioError(f"unknown scenario {str(name_or_path)!r}; shipped scenarios: {names}")
+    return resource.read_text(), f"{name_or_path}.toml"
+
+
+def _table(data: dict, key: str, required: bool = True) -> dict:
+    value = data.get(key)
+    if value is None and not required:
+        return {}
+    if not isinstance(value, dict):
+        raise ScenarioError(f"[{key}] must be a table, got {value!r}")
+    return value
+
+
+def _unknown(table: dict, allowed: set, where: str) -> None:
+    extra = sorted(set(table) - allowed)
+    if extra:
+        raise ScenarioError(f"unknown key {where}{extra[0]!r}; allowed: {sorted(allowed)}")
+
+
+def _posture(data: dict, which: str, arm: Arm):
+    table = _table(data, which)
+    _unknown(table, {"joints", "pose"}, f"in [{which}]: ")
+    if "joints" in table:
+        return table["joints"]
+    if "pose" not in table:
+        raise ScenarioError(f"[{which}] needs 'joints' or 'pose'")
+    pose = table["pose"]
+    if not isinstance(pose, dict) or not {"x", "y"} <= set(pose):
+        raise ScenarioError(f"{which}.pose must be {{x, y, phi, elbow}}, got {pose!r}")
+    _unknown(pose, {"x", "y", "phi", "elbow"}, f"in {which}.pose: ")
+    try:
+        return inverse_kinematics(arm, pose["x"], pose["y"], pose.get("phi", 0.0),
+                                  pose.get("elbow", 1))
+    except ValueError as error:
+        raise ScenarioError(f"{which}.{error}") from None
+
+
+def _obstacles(entries) -> World:
+    if not isinstance(entries, list):
+        raise ScenarioError(f"obstacles must be an array of tables, got {entries!r}")
+    circles, boxes, polygons = [], [], []
+    for index, entry in enumerate(entries):
+        where = f"obstacles[{index}]"
+        kind = entry.get("type") if isinstance(entry, dict) else None
+        if kind not in _OBSTACLE_KEYS:
+            raise ScenarioError(f"{where}.type must be circle, box or polygon, got {kind!r}")
+        _unknown(entry, _OBSTACLE_KEYS[kind], f"in {where}: ")
+        missing = sorted(_OBSTACLE_KEYS[kind] - set(entry))
+        if missing:
+            raise ScenarioError(f"{where} ({kind}) is missing {missing[0]!r}")
+        try:
+            if kind == "circle":
+                circles.append((*entry["center"], entry["radius"]))
+                World(circles=[circles[-1]])
+            elif kind == "box":
+                boxes.append((entry["min"], entry["max"]))
+                World(boxes=[boxes[-1]])
+            else:
+                polygons.append(entry["vertices"])
+                World(polygons=[polygons[-1]])
+        except (ValueError, TypeError) as error:
+            raise ScenarioError(f"{where}: {error}") from None
+    return World(circles=circles, boxes=boxes, polygons=polygons)
+
+
+def _problem(data: dict, default_name: str) -> Problem:
+    _unknown(data, _TOP_KEYS, "")
+    arm_table = _table(data, "arm")
+    _unknown(arm_table, {"lengths"}, "in [arm]: ")
+    if "lengths" not in arm_table:
+        raise ScenarioError("[arm] needs 'lengths'")
+    arm = Arm(lengths=arm_table["lengths"])
+    search = _table(data, "search", required=False)
+    _unknown(search, _SEARCH_KEYS, "in [search]: ")
+    fields = {
+        "degree": search.get("degree", 6),
+        "n_samples": search.get("samples", 101),
+        "collision": search.get("collision", "sampled"),
+        "init_low": search.get("init_low", -100.0),
+        "init_high": search.get("init_high", 100.0),
+    }
+    return Problem(
+        arm=arm,
+        start=_posture(data, "start", arm),
+        goal=_posture(data, "goal", arm),
+        world=_obstacles(data.get("obstacles", [])),
+        name=str(data.get("name", default_name)),
+        description=str(data.get("description", "")),
+        **fields,
+    )

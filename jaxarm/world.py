@@ -1,0 +1,325 @@
+"""Obstacle worlds: circles, axis-aligned boxes and convex polygons, packed as data.
+
+A ``World`` is validated once and packed into fixed-capacity arrays with validity masks
+(``WorldArrays``), so a new obstacle layout with the same capacities reuses compiled code.
+Boxes become 4-vertex polygons. Obstacles are open sets: a link that only grazes an obstacle's
+boundary (zero penetration) does not collide, so "collision-free" and "zero penetration" agree.
+
+Geometry kernel: the signed separation between a segment and each obstacle, positive (the
+Euclidean distance) when disjoint and minus the penetration depth when they overlap.
+For a circle it is ``dist(center, segment) - radius``. For a convex polygon, overlap is decided
+by the separating axis theorem over the polygon's edge normals and the segment's normal; the
+largest axis gap is minus the penetration depth when they overlap, and the exact distance
+(point-to-segment distances between the two boundaries) is used when they are apart.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm._validate import finite_vector
+
+_TINY = 1e-30
+
+
+class WorldArrays(NamedTuple):
+    """Obstacles packed into fixed capacities (a pytree of arrays; no recompilation per layout)."""
+
+    circles: jnp.ndarray  # shape=(n_circle_slots, 3), float: x, y, radius
+    circle_valid: jnp.ndarray  # shape=(n_circle_slots,), bool
+    vertices: jnp.ndarray  # shape=(n_polygon_slots, n_vertex_slots, 2), counter-clockwise
+    normals: jnp.ndarray  # shape=(n_polygon_slots, n_vertex_slots, 2), outward unit edge normals
+    extent_low: jnp.ndarray  # shape=(n_polygon_slots, n_vertex_slots), min of polygon . normal
+    extent_high: jnp.ndarray  # shape=(n_polygon_slots, n_vertex_slots), max of polygon . normal
+    edge_valid: jnp.ndarray  # shape=(n_polygon_slots, n_vertex_slots), bool
+    polygon_valid: jnp.ndarray  # shape=(n_polygon_slots,), bool
+
+
+def _capacity(count: int) -> int:
+    """Smallest power of two >= max(count, 1): layouts of similar size share one program."""
+    return 1 << max(count - 1, 0).bit_length()
+
+
+@dataclasses.dataclass(frozen=True)
+class World:
+    """Obstacles in the plane (cm).
+
+    Args:
+      circles: ``(x, y, radius)`` triples, radius > 0.
+      boxes: ``((xmin, ymin), (xmax, ymax))`` pairs with min < max on both axes.
+      polygons: convex polygons, each a list of >= 3 ``(x, y)`` vertices in either order.
+
+    Example:
+      >>> World(circles=[(40.0, 4.5, 6.7)]).n_obstacles
+      1
+    """
+
+    circles: tuple = ()
+    boxes: tuple = ()
+    polygons: tuple = ()
+
+    def __post_init__(self):
+        circles = tuple(_check_circle(i, c) for i, c in enumerate(self.circles))
+        boxes = tuple(_check_box(i, b) for i, b in enumerate(self.boxes))
+        polygons = tuple(_check_polygon(i, p) for i, p in enumerate(self.polygons))
+        object.__setattr__(self, "circles", circles)
+        object.__setattr__(self, "boxes", boxes)
+        object.__setattr__(self, "polygons", polygons)
+
+    @property
+    def n_obstacles(self) -> int:
+        return len(self.circles) + len(self.boxes) + len(self.polygons)
+
+    def polygon_vertices(self) -> list[np.ndarray]:
+        """Boxes then polygons as counter-clockwise vertex arrays, each shape (n_vertices, 2)."""
+        out = []
+        for (xmin, ymin), (xmax, ymax) in self.boxes:
+            out.append(np.array([[xmin, ymin], [xmax, ymin], [xmax, ymax], [xmin, ymax]]))
+        for polygon in self.polygons:
+            vertices = np.asarray(polygon, dtype=np.float64)
+            if _signed_area(vertices) < 0:
+                vertices = vertices[::-1]
+            out.append(vertices)
+        return out
+
+    def capacities(self) -> tuple[int, int, int]:
+        """Default (circle, polygon, vertex) slot counts: powers of two, vertices at least 4."""
+        polygons = self.polygon_vertices()
+        most_vertices = max((len(p) for p in polygons), default=4)
+        return (
+            _capacity(len(self.circles)),
+            _capacity(len(polygons)),
+            max(4, _capacity(most_vertices)),
+        )
+
+    def slot_names(self, capacities: tuple[int, int, int]) -> list[str | None]:
+        """Obstacle name of every slot of a packing (circle slots, then polygon slots)."""
+        n_circle_slots, n_polygon_slots, _ = capacities
+        circles = [f"circles[{i}]" for i in range(len(self.circles))]
+        polygons = [f"boxes[{i}]" for i in range(len(self.boxes))]
+        polygons += [f"polygons[{i}]" for i in range(len(self.polygons))]
+        pad = lambda names, n: names + [None] * (n - len(names))  # noqa: E731
+        return pad(circles, n_circle_slots) + pad(polygons, n_polygon_slots)
+
+    def pack(self, capacities: tuple[int, int, int] | None = None) -> WorldArrays:
+        """Pack into fixed-capacity float64 NumPy arrays with validity masks.
+
+        Args:
+          capacities: (circle slots, polygon slots, vertex slots); default ``capacities()``.
+        """
+        n_circle_slots, n_polygon_slots, n_vertex_slots = capacities or self.capacities()
+        polygons = self.polygon_vertices()
+        if len(self.circles) > n_circle_slots or len(polygons) > n_polygon_slots:
+            raise ValueError(
+                f"capacities {capacities} too small for {len(self.circles)} circles and "
+                f"{len(polygons)} boxes/polygons"
+            )
+        circles = np.zeros((n_circle_slots, 3))
+        circles[:, 2] = 1.0
+        circles[: len(self.circles)] = np.asarray(self.circles, dtype=np.float64).reshape(-1, 3)
+        circle_valid = np.arange(n_circle_slots) < len(self.circles)
+
+        vertices = np.zeros((n_polygon_slots, n_vertex_slots, 2))
+        vertices[:, :, 0] = np.arange(n_vertex_slots)  # unused slots: a harmless valid shape
+        edge_valid = np.zeros((n_polygon_slots, n_vertex_slots), dtype=bool)
+        for index, polygon in enumerate(polygons):
+            if len(polygon) > n_vertex_slots:
+                raise ValueError(
+                    f"capacities {capacities}: {len(polygon)} vertices exceed {n_vertex_slots}"
+                )
+            # Padding repeats the first vertex: padded edges have zero length (masked) and the
+            # closing edge (last vertex -> first) comes out of the same roll as the others.
+            vertices[index] = polygon[0]
+            vertices[index, : len(polygon)] = polygon
+            edge_valid[index, : len(polygon)] = True
+        polygon_valid = np.arange(n_polygon_slots) < len(polygons)
+        edge_valid &= polygon_valid[:, None]
+
+        edges = np.roll(vertices, -1, axis=1) - vertices
+        lengths = np.linalg.norm(edges, axis=-1, keepdims=True)
+        normals = np.stack([edges[..., 1], -edges[..., 0]], axis=-1) / np.maximum(lengths, _TINY)
+        projections = np.einsum("pvd,pwd->pvw", normals, vertices)  # normal v . vertex w
+        return WorldArrays(
+            circles=circles,
+            circle_valid=circle_valid,
+            vertices=vertices,
+            normals=normals,
+            extent_low=projections.min(axis=-1),
+            extent_high=projections.max(axis=-1),
+            edge_valid=edge_valid,
+            polygon_valid=polygon_valid,
+        )
+
+
+def _signed_area(vertices: np.ndarray) -> float:
+    x, y = vertices[:, 0], vertices[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def _check_circle(index: int, circle) -> tuple[float, float, float]:
+    values = finite_vector(f"world.circles[{index}]", circle, length=3)
+    if values[2] <= 0:
+        raise ValueError(f"world.circles[{index}] radius must be > 0, got {float(values[2])!r}")
+    return tuple(float(v) for v in values)
+
+
+def _check_box(index: int, box) -> tuple[tuple[float, float], tuple[float, float]]:
+    field = f"world.boxes[{index}]"
+    try:
+        low, high = box
+    except (TypeError, ValueError):
+        raise ValueError(f"{field} must be ((xmin, ymin), (xmax, ymax)), got {box!r}") from None
+    low = finite_vector(f"{field} min", low, length=2)
+    high = finite_vector(f"{field} max", high, length=2)
+    if not np.all(low < high):
+        raise ValueError(f"{field} needs min < max on both axes, got min {low} max {high}")
+    return (float(low[0]), float(low[1])), (float(high[0]), float(high[1]))
+
+
+def _check_polygon(index: int, polygon) -> tuple[tuple[float, float], ...]:
+    field = f"world.polygons[{index}]"
+    try:
+        vertices = np.asarray(polygon, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{field} must be a list of (x, y) vertices, got {polygon!r}") from None
+    if vertices.ndim != 2 or vertices.shape[1] != 2 or len(vertices) < 3:
+        raise ValueError(f"{field} must be at least 3 (x, y) vertices, got {polygon!r}")
+    if not np.all(np.isfinite(vertices)):
+        raise ValueError(f"{field} vertices must be finite, got {polygon!r}")
+    edges = np.roll(vertices, -1, axis=0) - vertices
+    turns = edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1)
+    scale = np.max(np.abs(vertices)) + 1.0
+    if np.any(np.abs(turns) <= 1e-12 * scale**2):
+        raise ValueError(f"{field} is degenerate (repeated or collinear vertices): {polygon!r}")
+    if not (np.all(turns > 0) or np.all(turns < 0)):
+        raise ValueError(f"{field} is not convex: {polygon!r}")
+    total_turn = np.sum(np.arctan2(turns, np.sum(edges * np.roll(edges, -1, axis=0), axis=1)))
+    if abs(abs(total_turn) - 2 * np.pi) > 1e-6:
+        raise ValueError(f"{field} is not a simple convex polygon (it winds twice): {polygon!r}")
+    return tuple((float(x), float(y)) for x, y in vertices)
+
+
+def point_segment_distance(px, py, ax, ay, bx, by):
+    """Distance from points (px, py) to segments (a, b); all arguments broadcast together."""
+    dx, dy = bx - ax, by - ay
+    t = ((px - ax) * dx + (py - ay) * dy) / jnp.maximum(dx * dx + dy * dy, _TINY)
+    t = jnp.clip(t, 0.0, 1.0)
+    ox, oy = px - ax - t * dx, py - ay - t * dy
+    return jnp.sqrt(ox * ox + oy * oy)
+
+
+def circle_separation(start, end, world: WorldArrays):
+    """Signed separation between segments and every circle slot.
+
+    Args:
+      start, end: segment end points, shape (..., 2).
+      world: packed obstacles.
+
+    Returns:
+      Array of shape (..., n_circle_slots): distance minus radius; +inf for empty slots.
+    """
+    circles = jnp.asarray(world.circles, dtype=start.dtype)
+    distance = point_segment_distance(
+        circles[:, 0], circles[:, 1],
+        start[..., 0, None], start[..., 1, None], end[..., 0, None], end[..., 1, None],
+    )
+    return jnp.where(world.circle_valid, distance - circles[:, 2], jnp.inf)
+
+
+def polygon_overlap_gap(start, end, world: WorldArrays):
+    """Largest separating-axis gap between segments and every polygon slot.
+
+    Positive iff the segment and the polygon are disjoint (then it is a lower bound on their
+    distance); otherwise it is minus the penetration depth.
+
+    Args:
+      start, end: segment end points, shape (..., 2).
+
+    Returns:
+      Array of shape (..., n_polygon_slots); +inf for empty slots.
+    """
+    dtype = start.dtype
+    # Written out per coordinate and per vertex slot (a static, small count): contractions and
+    # reductions over axes of length 2 or 4 compile to slow loops on CPU, while this form
+    # fuses into one vectorised elementwise loop over (..., n_polygon_slots).
+    sx, sy = start[..., 0, None], start[..., 1, None]
+    ex, ey = end[..., 0, None], end[..., 1, None]
+    dx, dy = ex - sx, ey - sy
+    inverse_length = jax.lax.rsqrt(jnp.maximum(dx * dx + dy * dy, _TINY))
+    mx, my = -dy * inverse_length, dx * inverse_length  # unit normal of the segment
+    offset = mx * sx + my * sy
+    normals = jnp.asarray(world.normals, dtype=dtype)
+    vertices = jnp.asarray(world.vertices, dtype=dtype)
+    low = jnp.asarray(world.extent_low, dtype=dtype)
+    high = jnp.asarray(world.extent_high, dtype=dtype)
+    gap = jnp.full(jnp.broadcast_shapes(sx.shape, world.polygon_valid.shape), -jnp.inf, dtype)
+    along_min = along_max = None
+    for v in range(normals.shape[-2]):
+        a = sx * normals[:, v, 0] + sy * normals[:, v, 1]
+        b = ex * normals[:, v, 0] + ey * normals[:, v, 1]
+        edge_gap = jnp.maximum(jnp.minimum(a, b) - high[:, v], low[:, v] - jnp.maximum(a, b))
+        gap = jnp.maximum(gap, jnp.where(world.edge_valid[:, v], edge_gap, -jnp.inf))
+        along = mx * vertices[:, v, 0] + my * vertices[:, v, 1]
+        along_min = along if along_min is None else jnp.minimum(along_min, along)
+        along_max = along if along_max is None else jnp.maximum(along_max, along)
+    gap = jnp.maximum(gap, jnp.maximum(along_min - offset, offset - along_max))
+    return jnp.where(world.polygon_valid, gap, jnp.inf)
+
+
+def polygon_separation(start, end, world: WorldArrays):
+    """Signed separation between segments and every polygon slot: the exact distance when
+    disjoint, minus the penetration depth when overlapping, +inf for empty slots.
+
+    Args:
+      start, end: segment end points, shape (..., 2).
+
+    Returns:
+      Array of shape (..., n_polygon_slots).
+    """
+    gap = polygon_overlap_gap(start, end, world)
+    vertices = jnp.asarray(world.vertices, dtype=start.dtype)
+    following = jnp.roll(vertices, -1, axis=-2)
+    sx, sy = start[..., 0, None], start[..., 1, None]
+    ex, ey = end[..., 0, None], end[..., 1, None]
+    distance = jnp.full(gap.shape, jnp.inf, gap.dtype)
+    for v in range(vertices.shape[-2]):  # static and small: see polygon_overlap_gap
+        vx, vy = vertices[:, v, 0], vertices[:, v, 1]
+        wx, wy = following[:, v, 0], following[:, v, 1]
+        to_edge = jnp.minimum(
+            point_segment_distance(sx, sy, vx, vy, wx, wy),
+            point_segment_distance(ex, ey, vx, vy, wx, wy),
+        )
+        to_edge = jnp.where(world.edge_valid[:, v], to_edge, jnp.inf)
+        from_vertex = point_segment_distance(vx, vy, sx, sy, ex, ey)
+        distance = jnp.minimum(distance, jnp.minimum(to_edge, from_vertex))
+    signed = jnp.where(gap > 0, distance, gap)
+    return jnp.where(world.polygon_valid, signed, jnp.inf)
+
+
+def separation(start, end, world: WorldArrays):
+    """Signed separation between segments and every obstacle slot (circles, then polygons).
+
+    Args:
+      start, end: segment end points, shape (..., 2).
+
+    Returns:
+      Array of shape (..., n_circle_slots + n_polygon_slots); +inf for empty slots.
+    """
+    return jnp.concatenate(
+        [circle_separation(start, end, world), polygon_separation(start, end, world)], axis=-1
+    )
+
+
+def penetration(start, end, world: WorldArrays):
+    """Penetration depth of segments into every obstacle slot, >= 0; shape (..., n_slots).
+
+    Cheaper than ``separation`` (no distances for disjoint polygons); zero iff no overlap.
+    """
+    circles = -circle_separation(start, end, world)
+    polygons = -polygon_overlap_gap(start, end, world)
+    return jnp.maximum(jnp.concatenate([circles, polygons], axis=-1), 0.0)

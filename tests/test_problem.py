@@ -1,0 +1,146 @@
+"""Problem: the paper's published values, batching, jit, dtypes and input validation."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+import jaxarm
+from conftest import PAPER_CASE_2, PAPER_CASE_3
+
+
+def _printed_decimals(value: float) -> int:
+    return len(repr(value).split(".")[1])
+
+
+@pytest.mark.parametrize("x, published", PAPER_CASE_2)
+def test_case_2_published_fitness(case2, x, published):
+    # Equal at the digits the paper printed (4 significant figures, 5 for 0.19765).
+    fitness = float(jaxarm.fitness(case2, x))
+    assert round(fitness, _printed_decimals(published)) == published
+
+
+@pytest.mark.parametrize("x, published", PAPER_CASE_3)
+def test_case_3_published_fitness(case3, x, published):
+    fitness = float(jaxarm.fitness(case3, x))
+    assert round(fitness, _printed_decimals(published)) == published
+
+
+@pytest.mark.parametrize("mode", ["sampled", "certified"])
+def test_reconstructed_obstacle_blocks_the_free_optimum(case2, mode):
+    problem = case2.replace(collision=mode)
+    assert bool(jaxarm.collides(problem, [0.0, 0.0, 0.0]))
+    assert not bool(np.any(jaxarm.collides(problem, [x for x, _ in PAPER_CASE_2])))
+
+
+def test_fitness_is_inverse_distance_when_free_and_zero_when_colliding(case2, rng):
+    x = rng.uniform(-200, 200, (2000, 3))
+    fitness = np.asarray(jaxarm.fitness(case2, x))
+    distance = np.asarray(jaxarm.travelling_distance(case2, x))
+    violation = np.asarray(jaxarm.violation(case2, x))
+    free = violation == 0
+    assert 0 < free.sum() < len(x)
+    np.testing.assert_allclose(fitness[free], 1 / distance[free], rtol=1e-6)
+    assert np.all(fitness[~free] == 0)
+    assert np.all(violation >= 0)
+    np.testing.assert_array_equal(np.asarray(jaxarm.collides(case2, x)), ~free)
+
+
+def test_batched_equals_looped_for_any_leading_shape(case2, rng):
+    x = rng.uniform(-200, 200, (2, 3, 3))
+    batched = np.asarray(jaxarm.violation(case2, x))
+    assert batched.shape == (2, 3)
+    looped = np.array([[float(jaxarm.violation(case2, x[i, j])) for j in range(3)]
+                       for i in range(2)])
+    np.testing.assert_allclose(batched, looped, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("mode", ["sampled", "certified"])
+def test_jit_equals_no_jit(case2, rng, mode):
+    problem = case2.replace(collision=mode)
+    x = jnp.asarray(rng.uniform(-200, 200, (64, 3)), dtype=jnp.float32)
+    spec, arrays = problem.spec, problem.arrays
+    with jax.disable_jit():
+        eager = jaxarm.problem.evaluate(spec, arrays, x)
+    jitted = jax.jit(jaxarm.problem.evaluate, static_argnums=0)(spec, arrays, x)
+    for a, b in zip(eager, jitted):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
+
+
+@given(st.lists(st.floats(-200, 200), min_size=3, max_size=3))
+def test_float32_agrees_with_float64(x):
+    problem = jaxarm.load_scenario("paper-case-2")
+    low = np.asarray(jaxarm.problem.evaluate(problem.spec, problem.arrays,
+                                             jnp.asarray(x, jnp.float32)))
+    with jax.enable_x64(True):
+        high = np.asarray(jaxarm.problem.evaluate(problem.spec, problem.arrays,
+                                                  jnp.asarray(x, jnp.float64)))
+    np.testing.assert_allclose(low[2], high[2], rtol=1e-5)  # distance
+    # Collision verdicts can only differ within rounding of the boundary.
+    if (low[1] > 0) != (high[1] > 0):
+        assert max(low[1], high[1]) < 1e-3
+
+
+def test_new_obstacle_data_does_not_recompile(case2):
+    evaluate = jax.jit(jaxarm.problem.evaluate, static_argnums=0)
+    moved = case2.replace(world=jaxarm.World(circles=[(-40.0, -40.0, 5.0)]))
+    assert moved.spec == case2.spec
+    x = jnp.zeros((4, 3))
+    evaluate(case2.spec, case2.arrays, x)
+    before = evaluate._cache_size()
+    evaluate(moved.spec, moved.arrays, x)
+    assert evaluate._cache_size() == before
+
+
+ARM = jaxarm.Arm((30.0, 30.0, 20.0))
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"start": [0.0, float("nan"), 0.0]}, r"start\[1\] must be finite, got nan"),
+        ({"goal": [0.0, 1.0]}, r"goal must have 3 values, got 2"),
+        ({"n_samples": 100}, r"n_samples must be odd .* got 100"),
+        ({"n_samples": 1}, r"n_samples must be >= 3, got 1"),
+        ({"degree": 5}, r"degree must be >= 6, got 5"),
+        ({"degree": 6.5}, r"degree must be an integer, got 6.5"),
+        ({"collision": "exact"}, r"collision must be one of .* got 'exact'"),
+        ({"init_low": 5.0, "init_high": 5.0}, r"init_low must be < init_high"),
+        ({"init_low": [0.0, 1.0]}, r"init_low must have 3 values, got 2"),
+        ({"init_high": float("inf")}, r"init_high must be finite, got inf"),
+    ],
+)
+def test_bad_problem_fields_name_the_field_and_value(changes, message):
+    fields = dict(arm=ARM, start=[0.0, 0.5, 0.5], goal=[1.0, 0.5, 0.5]) | changes
+    with pytest.raises(ValueError, match=message):
+        jaxarm.Problem(**fields)
+
+
+@pytest.mark.parametrize(
+    "lengths, message",
+    [((30.0, -1.0), r"arm.lengths\[1\] must be > 0, got -1.0"),
+     ((30.0, 0.0), r"arm.lengths\[1\] must be > 0, got 0.0"),
+     ((), r"at least one link"),
+     ((30.0, float("inf")), r"arm.lengths\[1\] must be finite, got inf")],
+)
+def test_bad_arm_lengths(lengths, message):
+    with pytest.raises(ValueError, match=message):
+        jaxarm.Arm(lengths)
+
+
+def test_colliding_start_names_the_link_and_obstacle():
+    world = jaxarm.World(circles=[(100.0, 100.0, 1.0)], boxes=[((25.0, -5.0), (35.0, 5.0))])
+    with pytest.raises(ValueError, match=r"start posture .* collides: link 1 overlaps boxes\[0\]"):
+        jaxarm.Problem(arm=ARM, start=[0.0, 1.5, 0.0], goal=[1.5, 0.5, 0.5], world=world)
+    with pytest.raises(ValueError, match=r"goal posture .* collides: link 3 overlaps circles\[0\]"):
+        jaxarm.Problem(arm=ARM, start=[1.5, 0.5, 0.5], goal=[0.0, 0.0, 0.0],
+                       world=jaxarm.World(circles=[(75.0, 0.0, 2.0)]))
+
+
+def test_bad_parameters_are_rejected(case2):
+    with pytest.raises(ValueError, match=r"x must have shape \(\.\.\., 3\).* got shape \(4,\)"):
+        jaxarm.fitness(case2, np.zeros(4))
+    with pytest.raises(ValueError, match=r"x must be finite"):
+        jaxarm.fitness(case2, [0.0, float("nan"), 1.0])
