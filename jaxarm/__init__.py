@@ -19,7 +19,9 @@ from jaxarm.problem import (
     travelling_distance,
     violation,
 )
+from jaxarm.pso import CONSTRAINTS, PRESETS, PSOConfig
 from jaxarm.scenarios import ScenarioError, available as available_scenarios, load_scenario
+from jaxarm.solve import Result, solve
 from jaxarm.world import World
 
 __version__ = "0.1.0"
@@ -27,8 +29,12 @@ __version__ = "0.1.0"
 __all__ = [
     "Arm",
     "COLLISION_MODES",
+    "CONSTRAINTS",
     "Evaluation",
+    "PRESETS",
+    "PSOConfig",
     "Problem",
+    "Result",
     "ScenarioError",
     "World",
     "available_scenarios",
@@ -39,6 +45,7 @@ __all__ = [
     "joint_path",
     "joint_positions",
     "load_scenario",
+    "solve",
     "travelling_distance",
     "violation",
 ]

@@ -151,7 +151,7 @@ def test_certified_is_sound_and_not_too_conservative_against_a_dense_check(rng):
         sampled_ok = np.asarray(jaxarm.violation(problem, x)) == 0
         certified_ok = np.asarray(jaxarm.violation(certified, x)) == 0
         assert not np.any(certified_ok & ~sampled_ok)
-        candidates = np.nonzero(sampled_ok)[0][:20]  # dense checks are the expensive part
+        candidates = np.nonzero(sampled_ok)[0][:10]  # dense checks are the expensive part
         if candidates.size == 0:
             continue
         dense_ok = ~_oracle_path_collides(problem, x[candidates], 10_001)
@@ -163,6 +163,6 @@ def test_certified_is_sound_and_not_too_conservative_against_a_dense_check(rng):
         dense_free += dense_ok.sum()
         certified_of_dense_free += np.sum(certified_ok[candidates] & dense_ok)
     assert missed_by_sampling > 0, "expected the sampled check to step over some thin walls"
-    assert dense_free > 100
+    assert dense_free > 60
     # Not so conservative that it rejects most free motions.
     assert certified_of_dense_free / dense_free > 0.6, (certified_of_dense_free, dense_free)

@@ -1,0 +1,304 @@
+"""Particle Swarm Optimization as pure functions (paper eqs. 13-16), maximising a score.
+
+One formula covers the paper's three velocity rules:
+
+    v <- chi * (omega(t) * v + phi1 * beta1 * (p_i - x) + phi2 * beta2 * (p_g - x)),  x <- x + v
+
+- ``"original"`` (eq. 13): chi = 1, omega = 1.
+- ``"inertia"`` (eq. 15): chi = 1, omega(t) linear from ``inertia_start`` (t = 0) to
+  ``inertia_end`` (t = n_iters); the paper's ``(maxit - iter) / maxit`` is 1 -> 0, a constant
+  weight is start == end.
+- ``"constriction"`` (eq. 16): ``chi = 2 / |2 - phi - sqrt(phi^2 - 4 phi)|`` with
+  ``phi = phi1 + phi2 > 4`` (the paper's formula without the absolute value would make chi
+  negative), omega(t) as for inertia.
+
+Update t (t = 1 .. n_iters) uses omega(t). The swarm is synchronous: all particles move, then
+all are evaluated, then personal bests (replaced only on a strictly better score) and the global
+best (the best personal best) are updated.
+
+Choices the paper leaves open, with its defaults: initial velocity zero (``init_velocity``, a
+fraction of the init range), no velocity clamp (``velocity_clamp``, a fraction of the init
+range), ``beta`` drawn per dimension (or once per particle), and ties for the global best broken
+by the first index, as MATLAB's ``max`` (or uniformly at random). Under the death penalty an
+all-infeasible swarm has all-equal scores, so with first-index ties the global best stays at
+particle 0's initial position until some particle becomes feasible; personal bests never move
+either. That is the paper's behaviour (escape by the swarm's own random motion), and it is the
+pitfall evosax fixed in its PR #109; ``tie_break="random"`` is the alternative.
+
+Scores: a non-finite score (NaN or inf coordinates, say) counts as -inf, so it never becomes a
+personal or global best.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+VELOCITY_RULES = ("original", "inertia", "constriction")
+TIE_BREAKS = ("first", "random")
+BETA_MODES = ("dimension", "particle")
+
+
+class PSOConfig(NamedTuple):
+    """A PSO variant. Field names follow evosax (``cognitive_coeff`` is the paper's phi1 / c1).
+
+    Example:
+      >>> PSOConfig(velocity_rule="constriction", cognitive_coeff=3.0, social_coeff=2.0,
+      ...           inertia_start=1.0, inertia_end=1.0).constriction  # doctest: +ELLIPSIS
+      0.3819...
+    """
+
+    velocity_rule: str = "inertia"
+    cognitive_coeff: float = 1.5
+    social_coeff: float = 1.5
+    inertia_start: float = 1.0
+    inertia_end: float = 0.0
+    init_velocity: float = 0.0
+    velocity_clamp: float | None = None
+    tie_break: str = "first"
+    beta: str = "dimension"
+
+    @property
+    def constriction(self) -> float:
+        """chi: 1 unless ``velocity_rule == "constriction"``."""
+        if self.velocity_rule != "constriction":
+            return 1.0
+        phi = self.cognitive_coeff + self.social_coeff
+        return 2.0 / abs(2.0 - phi - math.sqrt(phi * phi - 4.0 * phi))
+
+    def validate(self) -> "PSOConfig":
+        """Return self, or raise ValueError naming the bad field and value."""
+        if self.velocity_rule not in VELOCITY_RULES:
+            raise ValueError(f"velocity_rule must be one of {VELOCITY_RULES}, "
+                             f"got {self.velocity_rule!r}")
+        if self.tie_break not in TIE_BREAKS:
+            raise ValueError(f"tie_break must be one of {TIE_BREAKS}, got {self.tie_break!r}")
+        if self.beta not in BETA_MODES:
+            raise ValueError(f"beta must be one of {BETA_MODES}, got {self.beta!r}")
+        for name in ("cognitive_coeff", "social_coeff", "inertia_start", "inertia_end",
+                     "init_velocity"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        if self.velocity_clamp is not None and not (
+            isinstance(self.velocity_clamp, (int, float)) and 0 < self.velocity_clamp < math.inf
+        ):
+            raise ValueError(f"velocity_clamp must be None or > 0, got {self.velocity_clamp!r}")
+        if self.velocity_rule == "constriction" and self.cognitive_coeff + self.social_coeff <= 4:
+            raise ValueError(
+                "constriction needs cognitive_coeff + social_coeff > 4, got "
+                f"{self.cognitive_coeff} + {self.social_coeff}"
+            )
+        return self
+
+    def numbers(self) -> jnp.ndarray:
+        """The numeric part as one array (traced under jit, so presets share a program).
+
+        Returns:
+          Array of shape (7,): chi, omega start, omega end, phi1, phi2, initial velocity
+          fraction, clamp fraction (inf for none).
+        """
+        original = self.velocity_rule == "original"
+        return jnp.array([
+            self.constriction,
+            1.0 if original else self.inertia_start,
+            1.0 if original else self.inertia_end,
+            self.cognitive_coeff,
+            self.social_coeff,
+            self.init_velocity,
+            math.inf if self.velocity_clamp is None else self.velocity_clamp,
+        ])
+
+    def structure(self) -> tuple[str, str]:
+        """The static part: what changes the compiled program."""
+        return self.tie_break, self.beta
+
+
+# The paper's Table 2 presets.
+PRESETS = {
+    "A": PSOConfig("inertia", 1.5, 1.5, 1.0, 0.0),
+    "B": PSOConfig("inertia", 0.5, 0.5, 1.0, 0.0),
+    "C": PSOConfig("constriction", 3.0, 2.0, 1.0, 1.0),
+}
+
+
+def resolve(method: str | PSOConfig) -> PSOConfig:
+    """A preset name ("A", "B", "C") or a ``PSOConfig``, validated."""
+    if isinstance(method, PSOConfig):
+        return method.validate()
+    if method in PRESETS:
+        return PRESETS[method]
+    raise ValueError(f"method must be one of {sorted(PRESETS)} or a PSOConfig, got {method!r}")
+
+
+class SwarmState(NamedTuple):
+    """A swarm between two updates."""
+
+    position: jax.Array  # shape=(n_particles, n_dims)
+    velocity: jax.Array  # shape=(n_particles, n_dims)
+    best_position: jax.Array  # shape=(n_particles, n_dims), personal bests
+    best_score: jax.Array  # shape=(n_particles,)
+    best_fitness: jax.Array  # shape=(n_particles,)
+    global_index: jax.Array  # shape=(), int32: particle whose personal best is the global best
+    iteration: jax.Array  # shape=(), int32: updates done so far
+    escape_iter: jax.Array  # shape=(), int32: first iteration with a feasible particle, or -1
+
+
+class StepInfo(NamedTuple):
+    """Per-iteration diagnostics (not part of the state)."""
+
+    global_fitness: jax.Array  # shape=(), fitness of the global best
+    global_score: jax.Array  # shape=(), its score
+    n_feasible: jax.Array  # shape=(), int32: feasible particles at this iteration
+
+
+class Scored(NamedTuple):
+    """What the swarm needs to know about a batch of positions."""
+
+    score: jax.Array  # shape=(n_particles,), higher is better
+    fitness: jax.Array  # shape=(n_particles,)
+    feasible: jax.Array  # shape=(n_particles,), bool
+
+
+ScoreFn = Callable[[jax.Array], Scored]
+
+
+def _choose_global(key, best_score, tie_break: str):
+    top = best_score.max()
+    if tie_break == "first":
+        return jnp.argmax(best_score).astype(jnp.int32)
+    noise = jax.random.uniform(key, best_score.shape)
+    return jnp.argmax(jnp.where(best_score == top, noise, -1.0)).astype(jnp.int32)
+
+
+def _sanitise(scored: Scored) -> Scored:
+    return scored._replace(score=jnp.where(jnp.isfinite(scored.score), scored.score, -jnp.inf))
+
+
+def init(key, score_fn: ScoreFn, numbers, structure, low, high, n_particles: int,
+         init_particles=None) -> tuple[SwarmState, StepInfo]:
+    """A random swarm in the box [low, high], evaluated.
+
+    Args:
+      key: PRNG key.
+      score_fn: maps positions (n_particles, n_dims) to ``Scored``.
+      numbers, structure: ``PSOConfig.numbers()`` and ``PSOConfig.structure()``.
+      low, high: the initial range, shape (n_dims,).
+      n_particles: swarm size (static).
+      init_particles: optional given particles, shape (n_given, n_dims), n_given <=
+        n_particles; they replace the first random ones (paper Table 6).
+
+    Returns:
+      The state (iteration 0) and its info.
+    """
+    tie_break, _ = structure
+    position_key, velocity_key, tie_key = jax.random.split(key, 3)
+    span = high - low
+    position = low + span * jax.random.uniform(position_key, (n_particles, low.shape[-1]),
+                                               dtype=low.dtype)
+    if init_particles is not None:
+        position = position.at[: init_particles.shape[0]].set(init_particles.astype(low.dtype))
+    velocity = numbers[5] * span * jax.random.uniform(
+        velocity_key, position.shape, dtype=low.dtype, minval=-1.0, maxval=1.0
+    )
+    scored = _sanitise(score_fn(position))
+    global_index = _choose_global(tie_key, scored.score, tie_break)
+    any_feasible = scored.feasible.any()
+    state = SwarmState(
+        position=position,
+        velocity=velocity,
+        best_position=position,
+        best_score=scored.score,
+        best_fitness=scored.fitness,
+        global_index=global_index,
+        iteration=jnp.zeros((), jnp.int32),
+        escape_iter=jnp.where(any_feasible, 0, -1).astype(jnp.int32),
+    )
+    return state, _info(state, scored)
+
+
+def _info(state: SwarmState, scored: Scored) -> StepInfo:
+    return StepInfo(
+        global_fitness=state.best_fitness[state.global_index],
+        global_score=state.best_score[state.global_index],
+        n_feasible=scored.feasible.sum().astype(jnp.int32),
+    )
+
+
+def step(key, state: SwarmState, score_fn: ScoreFn, numbers, structure, low, high,
+         n_iters: int) -> tuple[SwarmState, StepInfo]:
+    """One synchronous PSO update (paper eqs. 13-16) and evaluation.
+
+    Args:
+      key: PRNG key for this update.
+      state: the swarm.
+      score_fn, numbers, structure, low, high: as for ``init``.
+      n_iters: total number of updates, for the inertia schedule (static).
+
+    Returns:
+      The new state and its info.
+    """
+    tie_break, beta_mode = structure
+    chi, omega_start, omega_end, phi1, phi2, _, clamp = (numbers[i] for i in range(7))
+    beta_key, tie_key = jax.random.split(key)
+    beta_shape = state.position.shape if beta_mode == "dimension" else state.position.shape[:1] + (1,)
+    beta1, beta2 = jax.random.uniform(beta_key, (2,) + beta_shape, dtype=state.position.dtype)
+    iteration = state.iteration + 1
+    omega = omega_start + (omega_end - omega_start) * iteration / n_iters
+    global_position = state.best_position[state.global_index]
+    velocity = chi * (
+        omega * state.velocity
+        + phi1 * beta1 * (state.best_position - state.position)
+        + phi2 * beta2 * (global_position - state.position)
+    )
+    limit = clamp * (high - low)
+    velocity = jnp.clip(velocity, -limit, limit).astype(state.position.dtype)
+    position = state.position + velocity
+    scored = _sanitise(score_fn(position))
+    improved = scored.score > state.best_score
+    best_position = jnp.where(improved[:, None], position, state.best_position)
+    best_score = jnp.where(improved, scored.score, state.best_score)
+    best_fitness = jnp.where(improved, scored.fitness, state.best_fitness)
+    escaped_now = (state.escape_iter < 0) & scored.feasible.any()
+    new_state = SwarmState(
+        position=position,
+        velocity=velocity,
+        best_position=best_position,
+        best_score=best_score,
+        best_fitness=best_fitness,
+        global_index=_choose_global(tie_key, best_score, tie_break),
+        iteration=iteration,
+        escape_iter=jnp.where(escaped_now, iteration, state.escape_iter),
+    )
+    return new_state, _info(new_state, scored)
+
+
+CONSTRAINTS = ("death", "feasibility")
+
+
+def constraint_score(constraint: str, fitness, violation) -> Scored:
+    """Rank paths under a constraint-handling rule.
+
+    - ``"death"`` (the paper's death penalty): score = fitness, 0 for any colliding path, so an
+      all-colliding swarm has no gradient of information at all.
+    - ``"feasibility"`` (Deb's feasibility rules): a feasible path beats an infeasible one;
+      among feasible paths higher fitness wins; among infeasible ones, less violation wins.
+      As one number: ``fitness`` if feasible, else ``-violation``.
+
+    Args:
+      fitness, violation: shape (n,).
+
+    Returns:
+      ``Scored`` with arrays of shape (n,).
+    """
+    feasible = violation == 0
+    if constraint == "death":
+        score = fitness
+    elif constraint == "feasibility":
+        score = jnp.where(feasible, fitness, -violation)
+    else:
+        raise ValueError(f"constraint must be one of {CONSTRAINTS}, got {constraint!r}")
+    return Scored(score=score, fitness=fitness, feasible=feasible)

@@ -1,0 +1,237 @@
+"""``solve``: many independent PSO restarts in one compiled program.
+
+Restarts are vmapped, iterations run in ``lax.scan``. Restart i draws everything from
+``fold_in(key(seed), i)`` (and iteration t from ``fold_in`` of that with t), so its result does not
+depend on how many restarts run beside it or how they are chunked. The compiled program is
+specialised only on sizes and modes (``ProblemSpec``, particles, iterations, restarts, the
+constraint rule and the config's tie-breaking and beta mode); angles, obstacles, PSO
+coefficients, the init range and the seed are data, so a new scenario or preset reuses it.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm import pso
+from jaxarm._validate import positive_int
+from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, evaluate
+
+
+class Result(NamedTuple):
+    """What ``solve`` found: the best restart, every restart, and how it was produced."""
+
+    best_x: np.ndarray  # shape=(n_free,), the best restart's global best
+    best_fitness: float  # paper eq. 17 fitness of best_x (0 if infeasible)
+    feasible: bool  # best_x is collision-free in the problem's collision mode
+    escape_iter: int  # the best restart's escape iteration, -1 if it never escaped
+    history: np.ndarray  # shape=(n_iters + 1,), the best restart's global-best fitness
+    restart_best_x: np.ndarray  # shape=(n_restarts, n_free)
+    restart_best_fitness: np.ndarray  # shape=(n_restarts,)
+    restart_best_violation: np.ndarray  # shape=(n_restarts,), 0 iff feasible
+    restart_escape_iter: np.ndarray  # shape=(n_restarts,), int, -1 when never escaped
+    restart_history: np.ndarray  # shape=(n_restarts, n_iters + 1)
+    certified: bool  # best_x re-checked in certified (continuous) mode and passed
+    method: str  # preset name or "custom"
+    config: pso.PSOConfig
+    constraint: str
+    collision: str  # the collision mode the search used
+    seed: int
+    seconds: float  # wall time of the call, compilation included
+
+    @property
+    def n_restarts(self) -> int:
+        return int(self.restart_best_fitness.shape[0])
+
+    def summary(self) -> str:
+        """A few human-readable lines."""
+        escaped = int(np.sum(self.restart_escape_iter >= 0))
+        return "\n".join([
+            f"method {self.method} ({self.config.velocity_rule}), constraint {self.constraint}, "
+            f"{self.collision} collision check, seed {self.seed}",
+            f"best a   {np.array2string(self.best_x, precision=4, separator=', ')}",
+            f"fitness  {self.best_fitness:.5g}  feasible {self.feasible}  "
+            f"certified {self.certified}",
+            f"escape   iteration {self.escape_iter} (best restart); "
+            f"{escaped}/{self.n_restarts} restarts escaped",
+            f"time     {self.seconds:.2f} s",
+        ])
+
+
+class RestartOutcome(NamedTuple):
+    """Per-restart arrays returned by the compiled search."""
+
+    best_x: jax.Array  # shape=(n_restarts, n_free)
+    best_fitness: jax.Array  # shape=(n_restarts,)
+    best_violation: jax.Array  # shape=(n_restarts,)
+    escape_iter: jax.Array  # shape=(n_restarts,), int32
+    history: jax.Array  # shape=(n_restarts, n_iters + 1)
+
+
+def _one_restart(key, spec, arrays, numbers, structure, low, high, init_particles,
+                 n_particles, n_iters, constraint):
+    def score_fn(x):
+        evaluation = evaluate(spec, arrays, x)
+        return pso.constraint_score(constraint, evaluation.fitness, evaluation.violation)
+
+    state, info = pso.init(jax.random.fold_in(key, 0), score_fn, numbers, structure, low, high,
+                           n_particles, init_particles)
+
+    def body(state, iteration):
+        state, info = pso.step(jax.random.fold_in(key, iteration), state, score_fn, numbers,
+                               structure, low, high, n_iters)
+        return state, info.global_fitness
+
+    state, history = jax.lax.scan(body, state, jnp.arange(1, n_iters + 1))
+    best_x = state.best_position[state.global_index]
+    final = evaluate(spec, arrays, best_x)
+    return RestartOutcome(
+        best_x=best_x,
+        best_fitness=final.fitness,
+        best_violation=final.violation,
+        escape_iter=state.escape_iter,
+        history=jnp.concatenate([info.global_fitness[None], history]),
+    )
+
+
+def search(spec: ProblemSpec, arrays: ProblemArrays, numbers, structure, low, high, seed,
+           first_restart, init_particles, *, n_particles: int, n_iters: int, n_restarts: int,
+           constraint: str) -> RestartOutcome:
+    """Run restarts ``first_restart .. first_restart + n_restarts - 1`` (pure; jit below).
+
+    Args:
+      spec: static problem part; arrays: its data.
+      numbers, structure: ``PSOConfig.numbers()`` and ``.structure()``.
+      low, high: init range, shape (n_free,).
+      seed: int32 scalar; first_restart: int32 scalar index of the first restart.
+      init_particles: None or shape (n_given, n_free).
+
+    Returns:
+      ``RestartOutcome`` with leading axis n_restarts.
+    """
+    keys = jax.vmap(lambda i: jax.random.fold_in(jax.random.key(seed), i))(
+        first_restart + jnp.arange(n_restarts)
+    )
+    run = lambda key: _one_restart(key, spec, arrays, numbers, structure, low, high,  # noqa: E731
+                                   init_particles, n_particles, n_iters, constraint)
+    return jax.vmap(run)(keys)
+
+
+compiled_search = jax.jit(
+    search,
+    static_argnames=("spec", "structure", "n_particles", "n_iters", "n_restarts", "constraint"),
+)
+
+
+def method_name(method) -> str:
+    return method if isinstance(method, str) else "custom"
+
+
+def solve(problem: Problem, method: str | pso.PSOConfig = "A", *, n_particles: int = 20,
+          n_iters: int = 100, n_restarts: int = 1, seed: int = 0, constraint: str = "death",
+          init_particles=None) -> Result:
+    """Search the problem's free coefficients with PSO, ``n_restarts`` independent swarms at once.
+
+    Args:
+      problem: the problem.
+      method: "A", "B", "C" (the paper's Table 2 presets) or a ``PSOConfig``.
+      n_particles: swarm size (paper: 20).
+      n_iters: PSO updates (paper: 100); iteration 0 is the initial swarm.
+      n_restarts: independent swarms, restart i seeded by ``fold_in(key(seed), i)``.
+      seed: integer seed.
+      constraint: "death" (paper eq. 17) or "feasibility" (feasibility rules on the violation).
+      init_particles: optional particles, shape (n_given, n_free), put at the start of every
+        restart's initial swarm (paper Table 6).
+
+    Returns:
+      ``Result``.
+
+    Example:
+      >>> result = jaxarm.solve(jaxarm.load_scenario("paper-case-2"), constraint="feasibility")
+      >>> result.feasible
+      True
+    """
+    began = time.perf_counter()
+    config = pso.resolve(method)
+    if constraint not in pso.CONSTRAINTS:
+        raise ValueError(f"constraint must be one of {pso.CONSTRAINTS}, got {constraint!r}")
+    n_particles = positive_int("n_particles", n_particles)
+    n_iters = positive_int("n_iters", n_iters)
+    n_restarts = positive_int("n_restarts", n_restarts)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not (
+        0 <= seed < 2**31
+    ):
+        raise ValueError(f"seed must be an integer in [0, 2**31), got {seed!r}")
+    given = _check_init_particles(problem, init_particles, n_particles)
+    outcome = run_restarts(problem, config, constraint, n_particles, n_iters, seed, 0,
+                           n_restarts, given)
+    return _result(problem, method, config, constraint, seed, outcome, began)
+
+
+def run_restarts(problem, config, constraint, n_particles, n_iters, seed, first_restart,
+                 n_restarts, init_particles=None) -> RestartOutcome:
+    """The compiled search for restarts ``first_restart ..``, as NumPy arrays (for studies)."""
+    low, high = (jnp.asarray(b, dtype=jnp.result_type(float)) for b in problem.bounds())
+    outcome = compiled_search(
+        problem.spec, problem.arrays, config.numbers(), config.structure(), low, high,
+        jnp.int32(seed), jnp.int32(first_restart), init_particles,
+        n_particles=n_particles, n_iters=n_iters, n_restarts=n_restarts, constraint=constraint,
+    )
+    return RestartOutcome(*(np.asarray(a) for a in outcome))
+
+
+def _check_init_particles(problem, init_particles, n_particles):
+    if init_particles is None:
+        return None
+    given = np.asarray(init_particles, dtype=np.float64)
+    if given.ndim == 1:
+        given = given[None]
+    if given.ndim != 2 or given.shape[1] != problem.n_free or given.shape[0] > n_particles:
+        raise ValueError(
+            f"init_particles must have shape (n_given <= {n_particles}, {problem.n_free}), "
+            f"got {np.shape(init_particles)}"
+        )
+    if not np.all(np.isfinite(given)):
+        raise ValueError(f"init_particles must be finite, got {init_particles!r}")
+    return jnp.asarray(given, dtype=jnp.result_type(float))
+
+
+def _best_restart(fitness, violation) -> int:
+    """Highest fitness among feasible restarts, else least violation; first index on ties."""
+    feasible = violation == 0
+    score = np.where(feasible, fitness, -violation)
+    return int(np.argmax(score))
+
+
+def _result(problem, method, config, constraint, seed, outcome: RestartOutcome, began) -> Result:
+    best = _best_restart(outcome.best_fitness, outcome.best_violation)
+    best_x = outcome.best_x[best]
+    feasible = bool(outcome.best_violation[best] == 0)
+    certified_problem = problem.replace(collision="certified")
+    certified = feasible and not bool(
+        np.asarray(evaluate(certified_problem.spec, certified_problem.arrays,
+                            jnp.asarray(best_x)).violation) > 0
+    )
+    return Result(
+        best_x=best_x,
+        best_fitness=float(outcome.best_fitness[best]),
+        feasible=feasible,
+        escape_iter=int(outcome.escape_iter[best]),
+        history=outcome.history[best],
+        restart_best_x=outcome.best_x,
+        restart_best_fitness=outcome.best_fitness,
+        restart_best_violation=outcome.best_violation,
+        restart_escape_iter=outcome.escape_iter,
+        restart_history=outcome.history,
+        certified=certified,
+        method=method_name(method),
+        config=config,
+        constraint=constraint,
+        collision=problem.collision,
+        seed=int(seed),
+        seconds=time.perf_counter() - began,
+    )
