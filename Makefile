@@ -14,7 +14,8 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/activate
 	touch $@
 
 demo: $(VENV)/.installed-test
-	$(BIN)/python -m jaxarm.demo
+	$(BIN)/jaxarm reproduce-paper --quick --out results
+	@echo "Report: results/report.md"
 
 test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q

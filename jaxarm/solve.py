@@ -34,6 +34,7 @@ class Result(NamedTuple):
     restart_best_fitness: np.ndarray  # shape=(n_restarts,)
     restart_best_violation: np.ndarray  # shape=(n_restarts,), 0 iff feasible
     restart_escape_iter: np.ndarray  # shape=(n_restarts,), int, -1 when never escaped
+    restart_escape_x: np.ndarray  # shape=(n_restarts, n_free), global best at escape, NaN if never
     restart_history: np.ndarray  # shape=(n_restarts, n_iters + 1)
     certified: bool  # best_x re-checked in certified (continuous) mode and passed
     method: str  # preset name or "custom"
@@ -69,6 +70,7 @@ class RestartOutcome(NamedTuple):
     best_fitness: jax.Array  # shape=(n_restarts,)
     best_violation: jax.Array  # shape=(n_restarts,)
     escape_iter: jax.Array  # shape=(n_restarts,), int32
+    escape_x: jax.Array  # shape=(n_restarts, n_free), global best at escape; NaN if never
     history: jax.Array  # shape=(n_restarts, n_iters + 1)
 
 
@@ -80,13 +82,19 @@ def _one_restart(key, spec, arrays, numbers, structure, low, high, init_particle
 
     state, info = pso.init(jax.random.fold_in(key, 0), score_fn, numbers, structure, low, high,
                            n_particles, init_particles)
+    nan = jnp.full(low.shape, jnp.nan, low.dtype)
+    escape_x = jnp.where(state.escape_iter == 0, state.best_position[state.global_index], nan)
 
-    def body(state, iteration):
+    def body(carry, iteration):
+        state, escape_x = carry
         state, info = pso.step(jax.random.fold_in(key, iteration), state, score_fn, numbers,
                                structure, low, high, n_iters)
-        return state, info.global_fitness
+        escaped_now = state.escape_iter == iteration
+        escape_x = jnp.where(escaped_now, state.best_position[state.global_index], escape_x)
+        return (state, escape_x), info.global_fitness
 
-    state, history = jax.lax.scan(body, state, jnp.arange(1, n_iters + 1))
+    (state, escape_x), history = jax.lax.scan(body, (state, escape_x),
+                                              jnp.arange(1, n_iters + 1))
     best_x = state.best_position[state.global_index]
     final = evaluate(spec, arrays, best_x)
     return RestartOutcome(
@@ -94,6 +102,7 @@ def _one_restart(key, spec, arrays, numbers, structure, low, high, init_particle
         best_fitness=final.fitness,
         best_violation=final.violation,
         escape_iter=state.escape_iter,
+        escape_x=escape_x,
         history=jnp.concatenate([info.global_fitness[None], history]),
     )
 
@@ -226,6 +235,7 @@ def _result(problem, method, config, constraint, seed, outcome: RestartOutcome, 
         restart_best_fitness=outcome.best_fitness,
         restart_best_violation=outcome.best_violation,
         restart_escape_iter=outcome.escape_iter,
+        restart_escape_x=outcome.escape_x,
         restart_history=outcome.history,
         certified=certified,
         method=method_name(method),

@@ -1,0 +1,184 @@
+"""The ``jaxarm`` command: scenarios, solve, study, reproduce-paper.
+
+Errors (missing file, malformed TOML, bad values, unreachable pose, colliding start) print one
+line to stderr and exit with status 2; ``--debug`` shows the traceback instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import sys
+
+EXIT_ERROR = 2
+
+
+def _positive(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
+def _add_search_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scenario", help="a shipped scenario name or a path to a .toml file")
+    parser.add_argument("--constraint", default="death", choices=["death", "feasibility"],
+                        help="constraint handling (default: death, the paper's)")
+    parser.add_argument("--particles", type=_positive, default=20, help="swarm size (20)")
+    parser.add_argument("--iters", type=_positive, default=100, help="PSO iterations (100)")
+    parser.add_argument("--seed", type=int, default=0, help="base seed (0)")
+    parser.add_argument("--collision", choices=["sampled", "certified"],
+                        help="collision check (default: the scenario's)")
+    parser.add_argument("--degree", type=int, help="polynomial degree (default: the scenario's)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="jaxarm",
+        description="Smooth collision-free joint paths for planar arms by batched PSO (JAX).",
+    )
+    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    commands.add_parser("scenarios", help="list the shipped scenarios",
+                        description="List the shipped scenarios with one-line descriptions.")
+
+    solve = commands.add_parser("solve", help="search one scenario and print the best path",
+                                description="Run PSO restarts on a scenario; print a summary.")
+    _add_search_options(solve)
+    solve.add_argument("--method", default="A", choices=["A", "B", "C"],
+                       help="the paper's preset (A)")
+    solve.add_argument("--restarts", type=_positive, default=1, help="independent swarms (1)")
+    solve.add_argument("--json", type=pathlib.Path, help="write the result as JSON")
+    solve.add_argument("--plot", type=pathlib.Path, help="write the motion as a PNG")
+    solve.add_argument("--gif", type=pathlib.Path, help="write an animation of the motion")
+
+    study = commands.add_parser("study", help="escape probability over many seeds",
+                                description="Escape-probability study: every method over the "
+                                            "same seeds, with 95 %% Wilson intervals.")
+    _add_search_options(study)
+    study.add_argument("--seeds", type=_positive, default=500, help="seeds per method (500)")
+    study.add_argument("--methods", default="A,B,C",
+                       help="comma-separated: A, B, C, or METHOD:CONSTRAINT (A,B,C)")
+    study.add_argument("--json", type=pathlib.Path, help="write summaries as JSON")
+    study.add_argument("--csv", type=pathlib.Path, help="write per-seed records as CSV")
+    study.add_argument("--plot", type=pathlib.Path, help="write escape rates as a PNG")
+
+    reproduce = commands.add_parser(
+        "reproduce-paper", help="run the paper's experiments and write a report",
+        description="Tables 2-6 of the paper, a large escape study and the shipped suite; "
+                    "writes OUT/report.md with tables and figures.")
+    reproduce.add_argument("--out", type=pathlib.Path, default=pathlib.Path("results"),
+                           help="output folder (results)")
+    reproduce.add_argument("--quick", action="store_true",
+                           help="smaller studies (a couple of minutes on 2 cores)")
+    reproduce.add_argument("--seeds", type=_positive,
+                           help="seeds of the case-1 study (500; 100 with --quick)")
+    reproduce.add_argument("--suite", help="comma-separated scenarios for the suite study "
+                                           "(default: all shipped)")
+    reproduce.add_argument("--suite-seeds", type=_positive,
+                           help="seeds per suite scenario (200; 50 with --quick)")
+    return parser
+
+
+def _load(args):
+    from jaxarm.scenarios import load_scenario
+
+    overrides = {}
+    if args.collision:
+        overrides["collision"] = args.collision
+    if args.degree is not None:
+        overrides["degree"] = args.degree
+    return load_scenario(args.scenario, **overrides)
+
+
+def _scenarios(args) -> None:
+    from jaxarm.scenarios import available
+
+    names = available()
+    width = max(map(len, names))
+    for name, description in names.items():
+        print(f"{name:<{width}}  {description}")
+
+
+def _solve(args) -> None:
+    from jaxarm import plot
+    from jaxarm.solve import solve
+
+    problem = _load(args)
+    result = solve(problem, args.method, n_particles=args.particles, n_iters=args.iters,
+                   n_restarts=args.restarts, seed=args.seed, constraint=args.constraint)
+    print(f"{problem.name}: {args.restarts} restart(s) x {args.particles} particles x "
+          f"{args.iters} iterations")
+    print(result.summary())
+    if args.json:
+        args.json.write_text(json.dumps({
+            "scenario": problem.name, "method": result.method, "constraint": result.constraint,
+            "collision": result.collision, "seed": result.seed,
+            "best_x": result.best_x.tolist(), "best_fitness": result.best_fitness,
+            "feasible": result.feasible, "certified": result.certified,
+            "escape_iter": result.escape_iter, "history": result.history.tolist(),
+            "restart_escape_iter": result.restart_escape_iter.tolist(),
+            "restart_best_fitness": result.restart_best_fitness.tolist(),
+            "seconds": result.seconds,
+        }, indent=2))
+        print(f"wrote {args.json}")
+    if args.plot:
+        plot.plot_motion(problem, result.best_x).savefig(args.plot, dpi=110)
+        print(f"wrote {args.plot}")
+    if args.gif:
+        plot.animate(problem, result.best_x, args.gif)
+        print(f"wrote {args.gif}")
+
+
+def _study(args) -> None:
+    from jaxarm import plot
+    from jaxarm.study import escape_study
+
+    problem = _load(args)
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    result = escape_study(problem, methods, n_seeds=args.seeds, n_iters=args.iters,
+                          n_particles=args.particles, constraint=args.constraint, seed=args.seed)
+    print(f"{problem.name}: {args.seeds} seeds x {args.particles} particles x {args.iters} "
+          f"iterations, {problem.collision} collision check")
+    print(result.table())
+    for path, text in ((args.json, result.to_json), (args.csv, result.to_csv)):
+        if path:
+            path.write_text(text())
+            print(f"wrote {path}")
+    if args.plot:
+        plot.plot_escape_rates(result).savefig(args.plot, dpi=110)
+        print(f"wrote {args.plot}")
+
+
+def _reproduce(args) -> None:
+    from jaxarm.reproduce import reproduce_paper
+
+    suite = [name.strip() for name in args.suite.split(",")] if args.suite else None
+    reproduce_paper(args.out, quick=args.quick, n_seeds=args.seeds, suite=suite,
+                    suite_seeds=args.suite_seeds)
+
+
+COMMANDS = {"scenarios": _scenarios, "solve": _solve, "study": _study,
+            "reproduce-paper": _reproduce}
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        COMMANDS[args.command](args)
+    except (ValueError, OSError) as error:
+        if args.debug:
+            raise
+        message = str(error).splitlines()[0] if str(error) else type(error).__name__
+        print(f"jaxarm: error: {message}", file=sys.stderr)
+        return EXIT_ERROR
+    except KeyboardInterrupt:
+        print("jaxarm: interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,284 @@
+"""Escape-probability studies over many seeds, and coefficient sweeps (paper Tables 2, 4-5).
+
+A study runs every seed of a method as one restart of one compiled search (in chunks, with a
+progress bar on a terminal). Seed i of a study is restart i of ``solve(..., seed=seed)``, so
+every row can be re-run alone, bit for bit, whatever the chunking.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import sys
+import time
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from jaxarm import pso
+from jaxarm._validate import positive_int
+from jaxarm.problem import Problem, fitness
+from jaxarm.solve import RestartOutcome, method_name, run_restarts
+
+Z_95 = 1.959963984540054
+
+
+def wilson_interval(successes: int, trials: int, z: float = Z_95) -> tuple[float, float]:
+    """Wilson score interval for a binomial proportion (95 % by default).
+
+    Example:
+      >>> [round(v, 4) for v in wilson_interval(3, 7)]
+      [0.1582, 0.7495]
+    """
+    if trials <= 0:
+        raise ValueError(f"trials must be > 0, got {trials}")
+    p = successes / trials
+    denominator = 1 + z * z / trials
+    center = (p + z * z / (2 * trials)) / denominator
+    half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / denominator
+    return max(0.0, center - half), min(1.0, center + half)
+
+
+class MethodSpec(NamedTuple):
+    """One row of a study: a PSO method under a constraint rule."""
+
+    label: str  # e.g. "A", "A:feasibility"
+    config: pso.PSOConfig
+    constraint: str
+
+
+def parse_method(method, constraint: str) -> MethodSpec:
+    """``"A"``, ``"A:feasibility"`` or a ``PSOConfig`` (with the study's constraint)."""
+    if isinstance(method, str) and ":" in method:
+        name, constraint = method.split(":", 1)
+        config = pso.resolve(name)
+    else:
+        config = pso.resolve(method)
+    if constraint not in pso.CONSTRAINTS:
+        raise ValueError(f"constraint must be one of {pso.CONSTRAINTS}, got {constraint!r}")
+    label = method_name(method.split(":")[0] if isinstance(method, str) else method)
+    return MethodSpec(label if constraint == "death" else f"{label}:{constraint}", config,
+                      constraint)
+
+
+class MethodStudy(NamedTuple):
+    """Per-seed outcomes of one method, and their summaries."""
+
+    method: MethodSpec
+    seeds: np.ndarray  # shape=(n_seeds,), the restart index of each row
+    escape_iter: np.ndarray  # shape=(n_seeds,), -1 if never escaped
+    best_fitness: np.ndarray  # shape=(n_seeds,)
+    best_x: np.ndarray  # shape=(n_seeds, n_free)
+    escape_x: np.ndarray  # shape=(n_seeds, n_free), global best at escape, NaN if never
+    history: np.ndarray  # shape=(n_seeds, n_iters + 1)
+    seconds: float  # wall time, compilation included
+
+    @property
+    def n_seeds(self) -> int:
+        return int(self.seeds.shape[0])
+
+    @property
+    def escaped(self) -> np.ndarray:
+        return self.escape_iter >= 0
+
+    def escape_rate(self) -> float:
+        return float(self.escaped.mean())
+
+    def escape_interval(self) -> tuple[float, float]:
+        return wilson_interval(int(self.escaped.sum()), self.n_seeds)
+
+    def escape_curve(self) -> np.ndarray:
+        """Fraction of seeds escaped by iteration k, shape (n_iters + 1,)."""
+        n_iters = self.history.shape[1] - 1
+        iters = np.where(self.escaped, self.escape_iter, n_iters + 1)
+        return (iters[:, None] <= np.arange(n_iters + 1)).mean(axis=0)
+
+    def summary(self) -> dict:
+        """Escape rate, 95 % Wilson interval, escape-iteration quartiles, fitness quantiles."""
+        low, high = self.escape_interval()
+        escaped_iters = self.escape_iter[self.escaped]
+        feasible_fitness = self.best_fitness[self.best_fitness > 0]
+        quartiles = (np.percentile(escaped_iters, [25, 50, 75]).tolist()
+                     if escaped_iters.size else [None] * 3)
+        fitness_q = (np.percentile(feasible_fitness, [50, 100]).tolist()
+                     if feasible_fitness.size else [None, None])
+        return {
+            "method": self.method.label,
+            "velocity_rule": self.method.config.velocity_rule,
+            "constraint": self.method.constraint,
+            "n_seeds": self.n_seeds,
+            "escaped": int(self.escaped.sum()),
+            "escape_rate": self.escape_rate(),
+            "ci95_low": low,
+            "ci95_high": high,
+            "escape_iter_q1": quartiles[0],
+            "escape_iter_median": quartiles[1],
+            "escape_iter_q3": quartiles[2],
+            "fitness_median": fitness_q[0],
+            "fitness_best": fitness_q[1],
+            "seconds": self.seconds,
+        }
+
+
+class Study(NamedTuple):
+    """An escape-probability study: one ``MethodStudy`` per method, same seeds for all."""
+
+    problem_name: str
+    collision: str
+    n_particles: int
+    n_iters: int
+    seed: int
+    methods: tuple[MethodStudy, ...]
+
+    def __getitem__(self, label):  # study["A"]
+        if isinstance(label, int):
+            return tuple.__getitem__(self, label)
+        for method in self.methods:
+            if method.method.label == label:
+                return method
+        raise KeyError(f"no method {label!r} in this study; have "
+                       f"{[m.method.label for m in self.methods]}")
+
+    def table(self) -> str:
+        """Markdown table: escape rate with 95 % CI, escape-iteration quartiles, fitness."""
+        lines = [
+            "| method | constraint | escaped | escape rate [95 % CI] | escape iter median [q1, q3]"
+            " | best fitness median / max | time (s) |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        fmt = lambda v, spec: "–" if v is None else format(v, spec)  # noqa: E731
+        for method in self.methods:
+            s = method.summary()
+            lines.append(
+                f"| {s['method']} | {s['constraint']} | {s['escaped']}/{s['n_seeds']} | "
+                f"{s['escape_rate']:.1%} [{s['ci95_low']:.1%}, {s['ci95_high']:.1%}] | "
+                f"{fmt(s['escape_iter_median'], '.0f')} [{fmt(s['escape_iter_q1'], '.0f')}, "
+                f"{fmt(s['escape_iter_q3'], '.0f')}] | {fmt(s['fitness_median'], '.4f')} / "
+                f"{fmt(s['fitness_best'], '.4f')} | {s['seconds']:.1f} |"
+            )
+        return "\n".join(lines)
+
+    def to_json(self) -> str:
+        """Summaries, settings and escape curves as JSON."""
+        return json.dumps({
+            "problem": self.problem_name,
+            "collision": self.collision,
+            "n_particles": self.n_particles,
+            "n_iters": self.n_iters,
+            "seed": self.seed,
+            "methods": [
+                m.summary() | {"escape_curve": m.escape_curve().round(6).tolist()}
+                for m in self.methods
+            ],
+        }, indent=2)
+
+    def records(self) -> list[dict]:
+        """Tidy per-seed rows: one per (method, seed)."""
+        rows = []
+        for m in self.methods:
+            for i in range(m.n_seeds):
+                rows.append({
+                    "problem": self.problem_name,
+                    "method": m.method.label,
+                    "constraint": m.method.constraint,
+                    "seed": self.seed,
+                    "restart": int(m.seeds[i]),
+                    "escaped": bool(m.escaped[i]),
+                    "escape_iter": int(m.escape_iter[i]),
+                    "best_fitness": float(m.best_fitness[i]),
+                    **{f"x{j}": float(v) for j, v in enumerate(m.best_x[i])},
+                })
+        return rows
+
+    def to_csv(self) -> str:
+        """``records()`` as CSV text."""
+        rows = self.records()
+        out = io.StringIO()
+        writer = csv.DictWriter(out, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+        return out.getvalue()
+
+
+def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_seeds: int = 500,
+                 n_iters: int = 100, n_particles: int = 20, constraint: str = "death",
+                 seed: int = 0, chunk_size: int = 1000, progress: bool | None = None) -> Study:
+    """How often each method escapes zero fitness, over ``n_seeds`` independent seeds.
+
+    Args:
+      problem: the problem.
+      methods: entries "A", "B", "C", "A:feasibility" (method:constraint) or ``PSOConfig``s.
+      n_seeds: seeds (restarts) per method; the same restart indices for every method.
+      n_iters, n_particles: PSO sizes (paper: 100 and 20).
+      constraint: the constraint rule for entries that do not name one.
+      seed: base seed; seed i of the study is restart i of ``solve(problem, seed=seed)``.
+      chunk_size: restarts per compiled call (bounds memory; results do not depend on it).
+      progress: show a progress bar; default: when stderr is a terminal.
+
+    Returns:
+      ``Study``.
+    """
+    specs = [parse_method(m, constraint) for m in methods]
+    n_seeds = positive_int("n_seeds", n_seeds)
+    chunk_size = positive_int("chunk_size", chunk_size)
+    if progress is None:
+        progress = sys.stderr.isatty()
+    chunks = [(start, min(chunk_size, n_seeds - start)) for start in range(0, n_seeds, chunk_size)]
+    bar = _progress_bar(len(specs) * n_seeds, problem.name, progress)
+    results = []
+    for spec in specs:
+        began = time.perf_counter()
+        parts = []
+        for start, size in chunks:
+            parts.append(run_restarts(problem, spec.config, spec.constraint, n_particles, n_iters,
+                                      seed, start, size))
+            bar.update(size)
+        outcome = RestartOutcome(*(np.concatenate(a) for a in zip(*parts)))
+        results.append(MethodStudy(
+            method=spec,
+            seeds=np.arange(n_seeds),
+            escape_iter=outcome.escape_iter,
+            best_fitness=outcome.best_fitness,
+            best_x=outcome.best_x,
+            escape_x=outcome.escape_x,
+            history=outcome.history,
+            seconds=time.perf_counter() - began,
+        ))
+    bar.close()
+    return Study(problem.name, problem.collision, n_particles, n_iters, seed, tuple(results))
+
+
+def _progress_bar(total: int, label: str, enabled: bool):
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc=f"{label} seeds", unit="seed", disable=not enabled,
+                file=sys.stderr, leave=False)
+
+
+def sweep_coefficient(problem: Problem, x, index: int, values) -> np.ndarray:
+    """Fitness as one free coefficient sweeps through ``values``, the others fixed (Table 5).
+
+    Args:
+      x: the base coefficients, shape (n_free,).
+      index: which coefficient to vary.
+      values: shape (n_values,).
+
+    Returns:
+      Fitness, shape (n_values,).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    if not 0 <= index < problem.n_free:
+        raise ValueError(f"index must be in [0, {problem.n_free}), got {index}")
+    batch = np.repeat(x[None], len(values), axis=0)
+    batch[:, index] = values
+    return np.asarray(fitness(problem, batch))
+
+
+def feasible_intervals(values, feasible) -> list[tuple[float, float]]:
+    """Maximal runs of consecutive feasible sweep values, as (first, last) pairs."""
+    values, feasible = np.asarray(values), np.asarray(feasible, dtype=bool)
+    edges = np.diff(np.concatenate([[0], feasible.astype(int), [0]]))
+    starts, stops = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0] - 1
+    return [(float(values[a]), float(values[b])) for a, b in zip(starts, stops)]
