@@ -19,8 +19,10 @@ from jaxarm.problem import (
     travelling_distance,
     violation,
 )
+from jaxarm.path import raise_degree
 from jaxarm.pso import CONSTRAINTS, PRESETS, PSOConfig
 from jaxarm.scenarios import ScenarioError, available as available_scenarios, load_scenario
+from jaxarm.refine import RefineResult, refine
 from jaxarm.solve import Result, solve
 from jaxarm.world import World
 
@@ -34,6 +36,7 @@ __all__ = [
     "PRESETS",
     "PSOConfig",
     "Problem",
+    "RefineResult",
     "Result",
     "ScenarioError",
     "World",
@@ -45,6 +48,8 @@ __all__ = [
     "joint_path",
     "joint_positions",
     "load_scenario",
+    "raise_degree",
+    "refine",
     "solve",
     "travelling_distance",
     "violation",

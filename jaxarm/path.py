@@ -96,6 +96,25 @@ def basis_values(degree: int, r, order: int = 0, r_powers=None):
     return sum(r_powers[..., k, None] * coefficients[:, k] for k in range(degree + 1))
 
 
+def raise_degree(x, n_joints: int, degree: int):
+    """The same paths as free parameters of a higher degree (zeros for the new powers).
+
+    Args:
+      x: free parameters of some degree d, shape (..., n_joints * (d - 5)).
+      n_joints: number of joints.
+      degree: the new degree, >= d.
+
+    Returns:
+      Array of shape (..., n_joints * (degree - 5)), describing identical joint paths.
+    """
+    x = np.asarray(x)
+    extra = n_joints * n_free_per_joint(degree) - x.shape[-1]
+    if extra < 0 or x.shape[-1] % n_joints:
+        raise ValueError(f"cannot raise {x.shape[-1]} free parameters of {n_joints} joints to "
+                         f"degree {degree}")
+    return np.concatenate([x, np.zeros(x.shape[:-1] + (extra,), x.dtype)], axis=-1)
+
+
 def free_by_joint(x, n_joints: int):
     """Reshape free parameters (..., n_free) to (..., degree - 5, n_joints)."""
     return x.reshape(x.shape[:-1] + (-1, n_joints))

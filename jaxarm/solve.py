@@ -37,6 +37,7 @@ class Result(NamedTuple):
     restart_escape_x: np.ndarray  # shape=(n_restarts, n_free), global best at escape, NaN if never
     restart_history: np.ndarray  # shape=(n_restarts, n_iters + 1)
     certified: bool  # best_x re-checked in certified (continuous) mode and passed
+    pso_best_fitness: float  # best_fitness before refinement (equal when refine=False)
     method: str  # preset name or "custom"
     config: pso.PSOConfig
     constraint: str
@@ -142,7 +143,7 @@ def method_name(method) -> str:
 
 def solve(problem: Problem, method: str | pso.PSOConfig = "A", *, n_particles: int = 20,
           n_iters: int = 100, n_restarts: int = 1, seed: int = 0, constraint: str = "death",
-          init_particles=None) -> Result:
+          init_particles=None, refine: bool | str = False) -> Result:
     """Search the problem's free coefficients with PSO, ``n_restarts`` independent swarms at once.
 
     Args:
@@ -155,6 +156,8 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *, n_particles: i
       constraint: "death" (paper eq. 17) or "feasibility" (feasibility rules on the violation).
       init_particles: optional particles, shape (n_given, n_free), put at the start of every
         restart's initial swarm (paper Table 6).
+      refine: polish with ``jaxarm.refine`` after PSO: False, True (the best restart) or
+        "all" (every feasible restart, then the best is chosen again). Never worse.
 
     Returns:
       ``Result``.
@@ -175,10 +178,34 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *, n_particles: i
         0 <= seed < 2**31
     ):
         raise ValueError(f"seed must be an integer in [0, 2**31), got {seed!r}")
+    if refine not in (False, True, "all"):
+        raise ValueError(f"refine must be False, True or 'all', got {refine!r}")
     given = _check_init_particles(problem, init_particles, n_particles)
     outcome = run_restarts(problem, config, constraint, n_particles, n_iters, seed, 0,
                            n_restarts, given)
-    return _result(problem, method, config, constraint, seed, outcome, began)
+    pso_best = float(outcome.best_fitness[_best_restart(outcome.best_fitness,
+                                                        outcome.best_violation)])
+    if refine:
+        outcome = _refined(problem, outcome, every=refine == "all")
+    return _result(problem, method, config, constraint, seed, outcome, pso_best, began)
+
+
+def _refined(problem, outcome: RestartOutcome, every: bool) -> RestartOutcome:
+    """The outcome with the best (or every) feasible restart polished by ``refine``."""
+    from jaxarm.refine import refine
+
+    rows = (np.arange(len(outcome.best_fitness)) if every else
+            np.array([_best_restart(outcome.best_fitness, outcome.best_violation)]))
+    rows = rows[outcome.best_violation[rows] == 0]
+    if rows.size == 0:
+        return outcome
+    polished = refine(problem, outcome.best_x[rows])
+    # Kept only where strictly fitter than the PSO's own evaluation: the same x evaluated by
+    # another compiled program can differ in the last bit, and "never worse" must hold here.
+    better = polished.fitness > outcome.best_fitness[rows]
+    best_x, best_fitness = outcome.best_x.copy(), outcome.best_fitness.copy()
+    best_x[rows[better]], best_fitness[rows[better]] = polished.x[better], polished.fitness[better]
+    return outcome._replace(best_x=best_x, best_fitness=best_fitness)
 
 
 def run_restarts(problem, config, constraint, n_particles, n_iters, seed, first_restart,
@@ -216,7 +243,8 @@ def _best_restart(fitness, violation) -> int:
     return int(np.argmax(score))
 
 
-def _result(problem, method, config, constraint, seed, outcome: RestartOutcome, began) -> Result:
+def _result(problem, method, config, constraint, seed, outcome: RestartOutcome, pso_best, began
+            ) -> Result:
     best = _best_restart(outcome.best_fitness, outcome.best_violation)
     best_x = outcome.best_x[best]
     feasible = bool(outcome.best_violation[best] == 0)
@@ -238,6 +266,7 @@ def _result(problem, method, config, constraint, seed, outcome: RestartOutcome, 
         restart_escape_x=outcome.escape_x,
         restart_history=outcome.history,
         certified=certified,
+        pso_best_fitness=pso_best,
         method=method_name(method),
         config=config,
         constraint=constraint,

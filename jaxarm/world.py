@@ -120,12 +120,14 @@ class World:
                 f"{len(polygons)} boxes/polygons"
             )
         circles = np.zeros((n_circle_slots, 3))
-        circles[:, 2] = 1.0
+        circles[:, :2], circles[:, 2] = 1e4, 1.0  # unused slots, far away and masked
         circles[: len(self.circles)] = np.asarray(self.circles, dtype=np.float64).reshape(-1, 3)
         circle_valid = np.arange(n_circle_slots) < len(self.circles)
 
         vertices = np.zeros((n_polygon_slots, n_vertex_slots, 2))
-        vertices[:, :, 0] = np.arange(n_vertex_slots)  # unused slots: a harmless valid shape
+        # Unused slots: a harmless shape far from any arm (masked out in every kernel).
+        vertices[:, :, 0] = 1e4 + np.arange(n_vertex_slots)
+        vertices[:, :, 1] = 1e4
         edge_valid = np.zeros((n_polygon_slots, n_vertex_slots), dtype=bool)
         for index, polygon in enumerate(polygons):
             if len(polygon) > n_vertex_slots:
@@ -210,7 +212,9 @@ def point_segment_distance(px, py, ax, ay, bx, by):
     t = ((px - ax) * dx + (py - ay) * dy) / jnp.maximum(dx * dx + dy * dy, _TINY)
     t = jnp.clip(t, 0.0, 1.0)
     ox, oy = px - ax - t * dx, py - ay - t * dy
-    return jnp.sqrt(ox * ox + oy * oy)
+    # The floor keeps the gradient finite where a point lies on the segment (e.g. a link's
+    # base on an obstacle vertex): sqrt'(0) is infinite and 0 * inf would poison masked slots.
+    return jnp.sqrt(jnp.maximum(ox * ox + oy * oy, _TINY))
 
 
 def circle_separation(start, end, world: WorldArrays):

@@ -150,11 +150,6 @@ def test_plots_produce_non_empty_pngs(tmp_path, case2):
     assert gif.read_bytes()[:6] == b"GIF89a"
 
 
-def test_five_link_scenario_end_to_end(tmp_path):
-    problem = jaxarm.load_scenario("five-link-detour")
-    result = jaxarm.solve(problem, "A", n_restarts=4, constraint="feasibility", **SMALL)
-    assert result.best_x.shape == (5,)
-    plot.plot_motion(problem, result.best_x).savefig(tmp_path / "five.png")
 
 
 def test_cli_reproduce_paper_writes_a_report_with_every_table(capsys, tmp_path):
