@@ -48,6 +48,33 @@ class Arm:
         return float(sum(self.lengths))
 
 
+def link_endpoints(lengths, theta) -> list[tuple]:
+    """Every link's end points, one tuple per link, unrolled over the (few) joints.
+
+    Each coordinate is its own array over the batch, so everything downstream stays
+    elementwise (a cumulative sum over an axis of length 3 compiles to a slow loop on CPU).
+
+    Args:
+      lengths: link lengths, shape (n_joints,).
+      theta: relative joint angles (rad), shape (..., n_joints).
+
+    Returns:
+      A list of n_joints tuples ``(start_x, start_y, end_x, end_y)``, each of shape (...).
+    """
+    theta = jnp.asarray(theta)
+    lengths = jnp.asarray(lengths, dtype=theta.dtype)
+    x = y = jnp.zeros(theta.shape[:-1], theta.dtype)
+    absolute = 0.0
+    links = []
+    for k in range(theta.shape[-1]):
+        absolute = absolute + theta[..., k]
+        next_x = x + lengths[k] * jnp.cos(absolute)
+        next_y = y + lengths[k] * jnp.sin(absolute)
+        links.append((x, y, next_x, next_y))
+        x, y = next_x, next_y
+    return links
+
+
 def joint_positions(lengths, theta) -> jnp.ndarray:
     """Joint positions, base first, for any leading batch shape (paper eqs. 1-3).
 
@@ -59,12 +86,9 @@ def joint_positions(lengths, theta) -> jnp.ndarray:
       Positions, shape (..., n_joints + 1, 2); index 0 is the base (0, 0), the last the
       end-effector.
     """
-    theta = jnp.asarray(theta)
-    lengths = jnp.asarray(lengths, dtype=theta.dtype)
-    absolute = jnp.cumsum(theta, axis=-1)
-    steps = jnp.stack([lengths * jnp.cos(absolute), lengths * jnp.sin(absolute)], axis=-1)
-    base = jnp.zeros(steps.shape[:-2] + (1, 2), dtype=steps.dtype)
-    return jnp.concatenate([base, jnp.cumsum(steps, axis=-2)], axis=-2)
+    links = link_endpoints(lengths, theta)
+    points = [(links[0][0], links[0][1])] + [(ex, ey) for _, _, ex, ey in links]
+    return jnp.stack([jnp.stack(point, axis=-1) for point in points], axis=-2)
 
 
 def inverse_kinematics(arm: Arm, x: float, y: float, phi: float, elbow: int = 1) -> np.ndarray:

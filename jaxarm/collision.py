@@ -39,17 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm import path, world as world_lib
-from jaxarm.arm import joint_positions
-
-
-def link_segments(lengths, theta):
-    """End points of every link for joint angles of shape (..., n_joints).
-
-    Returns:
-      ``(start, end)``, each of shape (..., n_joints, 2).
-    """
-    positions = joint_positions(lengths, theta)
-    return positions[..., :-1, :], positions[..., 1:, :]
+from jaxarm.arm import link_endpoints
 
 
 def penetration(lengths, world, theta):
@@ -63,8 +53,29 @@ def penetration(lengths, world, theta):
     Returns:
       Array of shape (..., n_joints, n_obstacle_slots), >= 0.
     """
-    start, end = link_segments(lengths, theta)
-    return world_lib.penetration(start, end, world)
+    links = link_endpoints(lengths, theta)
+    return jnp.stack([jnp.moveaxis(world_lib.penetration_xy(*link, world), 0, -1)
+                      for link in links], axis=-2)
+
+
+def total_penetration(lengths, world, theta):
+    """Penetration summed over links, obstacles and the last batch axis (the samples).
+
+    Args:
+      theta: joint angles, shape (..., n_samples, n_joints).
+
+    Returns:
+      Array of shape (...,).
+    """
+    return sum(world_lib.penetration_xy(*link, world).sum(axis=(0, -1))
+               for link in link_endpoints(lengths, theta))
+
+
+def _nearest(separation):
+    """Min over obstacle slots (the leading axis); +inf for a world without obstacles."""
+    if separation.shape[0] == 0:
+        return jnp.full(separation.shape[1:], jnp.inf, separation.dtype)
+    return separation.min(axis=0)
 
 
 def clearance(lengths, world, theta):
@@ -76,8 +87,23 @@ def clearance(lengths, world, theta):
     Returns:
       Array of shape (..., n_joints).
     """
-    start, end = link_segments(lengths, theta)
-    return world_lib.separation(start, end, world).min(axis=-1)
+    links = link_endpoints(lengths, theta)
+    return jnp.stack([_nearest(world_lib.separation_xy(*link, world)) for link in links], axis=-1)
+
+
+def clearance_and_penetration(lengths, world, theta):
+    """``clearance`` and ``total_penetration`` from one pass over the geometry.
+
+    Args:
+      theta: joint angles, shape (..., n_samples, n_joints).
+
+    Returns:
+      Clearance of shape (..., n_samples, n_joints) and total penetration of shape (...,).
+    """
+    separations = [world_lib.separation_xy(*link, world)
+                   for link in link_endpoints(lengths, theta)]
+    depth = sum(jnp.maximum(-s, 0.0).sum(axis=(0, -1)) for s in separations)
+    return jnp.stack([_nearest(s) for s in separations], axis=-1), depth
 
 
 def reach_matrix(lengths):

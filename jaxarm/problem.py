@@ -21,7 +21,6 @@ import numpy as np
 
 from jaxarm import collision as collision_lib
 from jaxarm import path
-from jaxarm import world as world_lib
 from jaxarm._validate import finite_scalar, finite_vector, positive_int
 from jaxarm.arm import Arm
 from jaxarm.world import World, WorldArrays
@@ -231,17 +230,16 @@ def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x) -> Evaluation:
     )
     distance = path.travelling_distance(velocity, path.simpson_weights(spec.n_samples))
     theta = path.joint_angles(arrays.start, arrays.goal, x, path.basis_values(spec.degree, r))
-    segment_start, segment_end = collision_lib.link_segments(arrays.lengths, theta)
     if spec.collision == "sampled":
-        depth = world_lib.penetration(segment_start, segment_end, arrays.world)
-        violation = depth.sum(axis=(-3, -2, -1)) * step
+        violation = collision_lib.total_penetration(arrays.lengths, arrays.world, theta) * step
     else:
-        separation = world_lib.separation(segment_start, segment_end, arrays.world)
+        link_clearance, depth = collision_lib.clearance_and_penetration(
+            arrays.lengths, arrays.world, theta
+        )
         deficit = collision_lib.certified_deficit(
             arrays.lengths, arrays.world, arrays.start, arrays.goal, x,
-            separation.min(axis=-1), spec.degree, spec.refine_intervals, spec.refine_factor,
+            link_clearance, spec.degree, spec.refine_intervals, spec.refine_factor,
         )
-        depth = jnp.maximum(-separation, 0.0).sum(axis=(-3, -2, -1))
         violation = (depth + jnp.maximum(deficit, 0.0).sum(axis=-1)) * step
     fitness = jnp.where(violation > 0, 0.0, 1.0 / distance).astype(x.dtype)
     return Evaluation(fitness=fitness, violation=violation, distance=distance)

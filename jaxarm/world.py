@@ -41,8 +41,9 @@ class WorldArrays(NamedTuple):
 
 
 def _capacity(count: int) -> int:
-    """Smallest power of two >= max(count, 1): layouts of similar size share one program."""
-    return 1 << max(count - 1, 0).bit_length()
+    """0 for none (the kernel for that shape is skipped), else the smallest power of two >=
+    count: layouts of similar size share one program."""
+    return 0 if count == 0 else 1 << (count - 1).bit_length()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -206,6 +207,15 @@ def _check_polygon(index: int, polygon) -> tuple[tuple[float, float], ...]:
     return tuple((float(x), float(y)) for x, y in vertices)
 
 
+def _leading(values, ndim: int):
+    """Obstacle data of shape (n_slots,) as (n_slots, 1, ..., 1) to broadcast against (...).
+
+    Slots lead so that the innermost axis stays the caller's (the samples): elementwise loops
+    then vectorise over it instead of over a handful of obstacle slots.
+    """
+    return values.reshape(values.shape[:1] + (1,) * ndim)
+
+
 def point_segment_distance(px, py, ax, ay, bx, by):
     """Distance from points (px, py) to segments (a, b); all arguments broadcast together."""
     dx, dy = bx - ax, by - ay
@@ -227,12 +237,20 @@ def circle_separation(start, end, world: WorldArrays):
     Returns:
       Array of shape (..., n_circle_slots): distance minus radius; +inf for empty slots.
     """
-    circles = jnp.asarray(world.circles, dtype=start.dtype)
-    distance = point_segment_distance(
-        circles[:, 0], circles[:, 1],
-        start[..., 0, None], start[..., 1, None], end[..., 0, None], end[..., 1, None],
+    return jnp.moveaxis(
+        circle_separation_xy(start[..., 0], start[..., 1], end[..., 0], end[..., 1], world), 0, -1
     )
-    return jnp.where(world.circle_valid, distance - circles[:, 2], jnp.inf)
+
+
+def circle_separation_xy(sx, sy, ex, ey, world: WorldArrays):
+    """Like ``circle_separation`` for coordinates given separately, each of shape (...);
+    returns shape (n_circle_slots, ...)."""
+    circles = jnp.asarray(world.circles, dtype=sx.dtype)
+    n = sx.ndim
+    distance = point_segment_distance(_leading(circles[:, 0], n), _leading(circles[:, 1], n),
+                                      sx, sy, ex, ey)
+    return jnp.where(_leading(world.circle_valid, n), distance - _leading(circles[:, 2], n),
+                     jnp.inf)
 
 
 def polygon_overlap_gap(start, end, world: WorldArrays):
@@ -247,12 +265,18 @@ def polygon_overlap_gap(start, end, world: WorldArrays):
     Returns:
       Array of shape (..., n_polygon_slots); +inf for empty slots.
     """
-    dtype = start.dtype
+    return jnp.moveaxis(
+        polygon_overlap_gap_xy(start[..., 0], start[..., 1], end[..., 0], end[..., 1], world), 0, -1
+    )
+
+
+def polygon_overlap_gap_xy(sx, sy, ex, ey, world: WorldArrays):
+    """Like ``polygon_overlap_gap`` for coordinates given separately, each of shape (...);
+    returns shape (n_polygon_slots, ...)."""
+    dtype, n = sx.dtype, sx.ndim
     # Written out per coordinate and per vertex slot (a static, small count): contractions and
     # reductions over axes of length 2 or 4 compile to slow loops on CPU, while this form
-    # fuses into one vectorised elementwise loop over (..., n_polygon_slots).
-    sx, sy = start[..., 0, None], start[..., 1, None]
-    ex, ey = end[..., 0, None], end[..., 1, None]
+    # fuses into one vectorised elementwise loop.
     dx, dy = ex - sx, ey - sy
     inverse_length = jax.lax.rsqrt(jnp.maximum(dx * dx + dy * dy, _TINY))
     mx, my = -dy * inverse_length, dx * inverse_length  # unit normal of the segment
@@ -261,18 +285,20 @@ def polygon_overlap_gap(start, end, world: WorldArrays):
     vertices = jnp.asarray(world.vertices, dtype=dtype)
     low = jnp.asarray(world.extent_low, dtype=dtype)
     high = jnp.asarray(world.extent_high, dtype=dtype)
-    gap = jnp.full(jnp.broadcast_shapes(sx.shape, world.polygon_valid.shape), -jnp.inf, dtype)
+    gap = jnp.full((normals.shape[0],) + sx.shape, -jnp.inf, dtype)
     along_min = along_max = None
     for v in range(normals.shape[-2]):
-        a = sx * normals[:, v, 0] + sy * normals[:, v, 1]
-        b = ex * normals[:, v, 0] + ey * normals[:, v, 1]
-        edge_gap = jnp.maximum(jnp.minimum(a, b) - high[:, v], low[:, v] - jnp.maximum(a, b))
-        gap = jnp.maximum(gap, jnp.where(world.edge_valid[:, v], edge_gap, -jnp.inf))
-        along = mx * vertices[:, v, 0] + my * vertices[:, v, 1]
+        nx, ny = _leading(normals[:, v, 0], n), _leading(normals[:, v, 1], n)
+        a = sx * nx + sy * ny
+        b = ex * nx + ey * ny
+        edge_gap = jnp.maximum(jnp.minimum(a, b) - _leading(high[:, v], n),
+                               _leading(low[:, v], n) - jnp.maximum(a, b))
+        gap = jnp.maximum(gap, jnp.where(_leading(world.edge_valid[:, v], n), edge_gap, -jnp.inf))
+        along = mx * _leading(vertices[:, v, 0], n) + my * _leading(vertices[:, v, 1], n)
         along_min = along if along_min is None else jnp.minimum(along_min, along)
         along_max = along if along_max is None else jnp.maximum(along_max, along)
     gap = jnp.maximum(gap, jnp.maximum(along_min - offset, offset - along_max))
-    return jnp.where(world.polygon_valid, gap, jnp.inf)
+    return jnp.where(_leading(world.polygon_valid, n), gap, jnp.inf)
 
 
 def polygon_separation(start, end, world: WorldArrays):
@@ -285,24 +311,31 @@ def polygon_separation(start, end, world: WorldArrays):
     Returns:
       Array of shape (..., n_polygon_slots).
     """
-    gap = polygon_overlap_gap(start, end, world)
-    vertices = jnp.asarray(world.vertices, dtype=start.dtype)
+    return jnp.moveaxis(
+        polygon_separation_xy(start[..., 0], start[..., 1], end[..., 0], end[..., 1], world), 0, -1
+    )
+
+
+def polygon_separation_xy(sx, sy, ex, ey, world: WorldArrays):
+    """Like ``polygon_separation`` for coordinates given separately, each of shape (...);
+    returns shape (n_polygon_slots, ...)."""
+    n = sx.ndim
+    gap = polygon_overlap_gap_xy(sx, sy, ex, ey, world)
+    vertices = jnp.asarray(world.vertices, dtype=sx.dtype)
     following = jnp.roll(vertices, -1, axis=-2)
-    sx, sy = start[..., 0, None], start[..., 1, None]
-    ex, ey = end[..., 0, None], end[..., 1, None]
     distance = jnp.full(gap.shape, jnp.inf, gap.dtype)
-    for v in range(vertices.shape[-2]):  # static and small: see polygon_overlap_gap
-        vx, vy = vertices[:, v, 0], vertices[:, v, 1]
-        wx, wy = following[:, v, 0], following[:, v, 1]
+    for v in range(vertices.shape[-2]):  # static and small: see polygon_overlap_gap_xy
+        vx, vy = _leading(vertices[:, v, 0], n), _leading(vertices[:, v, 1], n)
+        wx, wy = _leading(following[:, v, 0], n), _leading(following[:, v, 1], n)
         to_edge = jnp.minimum(
             point_segment_distance(sx, sy, vx, vy, wx, wy),
             point_segment_distance(ex, ey, vx, vy, wx, wy),
         )
-        to_edge = jnp.where(world.edge_valid[:, v], to_edge, jnp.inf)
+        to_edge = jnp.where(_leading(world.edge_valid[:, v], n), to_edge, jnp.inf)
         from_vertex = point_segment_distance(vx, vy, sx, sy, ex, ey)
         distance = jnp.minimum(distance, jnp.minimum(to_edge, from_vertex))
     signed = jnp.where(gap > 0, distance, gap)
-    return jnp.where(world.polygon_valid, signed, jnp.inf)
+    return jnp.where(_leading(world.polygon_valid, n), signed, jnp.inf)
 
 
 def separation(start, end, world: WorldArrays):
@@ -314,8 +347,17 @@ def separation(start, end, world: WorldArrays):
     Returns:
       Array of shape (..., n_circle_slots + n_polygon_slots); +inf for empty slots.
     """
+    return jnp.moveaxis(
+        separation_xy(start[..., 0], start[..., 1], end[..., 0], end[..., 1], world), 0, -1
+    )
+
+
+def separation_xy(sx, sy, ex, ey, world: WorldArrays):
+    """Like ``separation`` for coordinates given separately, each of shape (...); returns
+    shape (n_slots, ...)."""
     return jnp.concatenate(
-        [circle_separation(start, end, world), polygon_separation(start, end, world)], axis=-1
+        [circle_separation_xy(sx, sy, ex, ey, world), polygon_separation_xy(sx, sy, ex, ey, world)],
+        axis=0,
     )
 
 
@@ -324,6 +366,14 @@ def penetration(start, end, world: WorldArrays):
 
     Cheaper than ``separation`` (no distances for disjoint polygons); zero iff no overlap.
     """
-    circles = -circle_separation(start, end, world)
-    polygons = -polygon_overlap_gap(start, end, world)
-    return jnp.maximum(jnp.concatenate([circles, polygons], axis=-1), 0.0)
+    return jnp.moveaxis(
+        penetration_xy(start[..., 0], start[..., 1], end[..., 0], end[..., 1], world), 0, -1
+    )
+
+
+def penetration_xy(sx, sy, ex, ey, world: WorldArrays):
+    """Like ``penetration`` for coordinates given separately, each of shape (...); returns
+    shape (n_slots, ...)."""
+    circles = -circle_separation_xy(sx, sy, ex, ey, world)
+    polygons = -polygon_overlap_gap_xy(sx, sy, ex, ey, world)
+    return jnp.maximum(jnp.concatenate([circles, polygons], axis=0), 0.0)
