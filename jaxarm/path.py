@@ -120,8 +120,8 @@ def free_by_joint(x, n_joints: int):
     return x.reshape(x.shape[:-1] + (-1, n_joints))
 
 
-def joint_angles(start, goal, x, basis, order: int = 0):
-    """Joint angles, or one of their derivatives, at the times a basis was evaluated at.
+def joint_angle_list(start, goal, x, basis, order: int = 0) -> list:
+    """Joint angles (or a derivative) at the times a basis was evaluated at, one array per joint.
 
     Args:
       start, goal: joint angles at r = 0 and r = 1, shape (n_joints,).
@@ -132,18 +132,26 @@ def joint_angles(start, goal, x, basis, order: int = 0):
         only appears for order 0).
 
     Returns:
-      Array of shape (..., n_r, n_joints).
+      A list of n_joints arrays of shape (..., n_r).
     """
     start = jnp.asarray(start, dtype=x.dtype)
     goal = jnp.asarray(goal, dtype=x.dtype)
     basis = jnp.asarray(basis, dtype=x.dtype)
     free = free_by_joint(x, start.shape[-1])
-    # An unrolled sum over the few free powers: elementwise, so it fuses with what follows
+    # Unrolled over joints and free powers: elementwise, so it fuses with what follows
     # (a batched contraction over such small axes compiles to a slow loop on CPU).
-    theta = basis[..., :1] * (goal - start)
-    for m in range(free.shape[-2]):
-        theta = theta + basis[..., m + 1, None] * free[..., m, None, :]
-    return theta + start if order == 0 else theta
+    angles = []
+    for k in range(start.shape[-1]):
+        theta = basis[..., 0] * (goal[k] - start[k])
+        for m in range(free.shape[-2]):
+            theta = theta + basis[..., m + 1] * free[..., m, k, None]
+        angles.append(theta + start[k] if order == 0 else theta)
+    return angles
+
+
+def joint_angles(start, goal, x, basis, order: int = 0):
+    """``joint_angle_list`` stacked: shape (..., n_r, n_joints)."""
+    return jnp.stack(joint_angle_list(start, goal, x, basis, order), axis=-1)
 
 
 def coefficients(start, goal, x, degree: int):
@@ -177,24 +185,15 @@ def travelling_distance(velocity, weights):
     """Joint angle travelling distance summed over joints (paper eq. 5 by Simpson's rule).
 
     Args:
-      velocity: ``d theta / d r`` at the sample points, shape (..., n_samples, n_joints).
+      velocity: ``d theta / d r`` at the sample points, shape (..., n_samples, n_joints), or a
+        list of per-joint arrays of shape (..., n_samples).
       weights: ``simpson_weights(n_samples)``, shape (n_samples,).
 
     Returns:
       Array of shape (...,): ``sum_k integral_0^1 sqrt(1 + theta_k'(r)^2) dr``.
     """
-    arc = jnp.sqrt(1.0 + velocity * velocity)
-    return jnp.einsum("...sj,s->...", arc, jnp.asarray(weights, dtype=velocity.dtype))
+    if not isinstance(velocity, (list, tuple)):
+        velocity = [velocity[..., k] for k in range(velocity.shape[-1])]
+    weights = jnp.asarray(weights, dtype=velocity[0].dtype)
+    return sum((jnp.sqrt(1.0 + v * v) * weights).sum(axis=-1) for v in velocity)
 
-
-def squared_jerk(jerk, weights):
-    """Integrated squared jerk summed over joints, ``sum_k integral (theta_k''')^2 dr``.
-
-    Args:
-      jerk: ``d^3 theta / d r^3`` at the sample points, shape (..., n_samples, n_joints).
-      weights: Simpson weights, shape (n_samples,).
-
-    Returns:
-      Array of shape (...,).
-    """
-    return jnp.einsum("...sj,s->...", jerk * jerk, jnp.asarray(weights, dtype=jerk.dtype))

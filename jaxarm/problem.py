@@ -225,11 +225,12 @@ def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x) -> Evaluation:
     """
     r = np.linspace(0.0, 1.0, spec.n_samples)
     step = 1.0 / (spec.n_samples - 1)
-    velocity = path.joint_angles(
+    velocity = path.joint_angle_list(
         arrays.start, arrays.goal, x, path.basis_values(spec.degree, r, 1), order=1
     )
     distance = path.travelling_distance(velocity, path.simpson_weights(spec.n_samples))
-    theta = path.joint_angles(arrays.start, arrays.goal, x, path.basis_values(spec.degree, r))
+    theta = path.joint_angle_list(arrays.start, arrays.goal, x,
+                                  path.basis_values(spec.degree, r))
     if spec.collision == "sampled":
         violation = collision_lib.total_penetration(arrays.lengths, arrays.world, theta) * step
     else:

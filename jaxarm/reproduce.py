@@ -195,9 +195,10 @@ def _table_3(report: _Report, case2, case3) -> None:
         "our fitness | certified |",
         "|---|---|---|---|---|---|---|",
     )
+    results = {}
     for problem in (case2, case3):
         paper_x, paper_fitness = PAPER_TABLE_3[problem.name]
-        result = solve(problem, "A", seed=0)
+        result = results[problem.name] = solve(problem, "A", seed=0)
         report.add(
             f"| {problem.name} | {_vector(paper_x)} | {paper_fitness} | "
             f"{float(fitness(problem, paper_x)):.4f} | {_vector(result.best_x)} | "
@@ -207,8 +208,7 @@ def _table_3(report: _Report, case2, case3) -> None:
                "the paper's did not; *certified* says whether the path also passes the "
                "continuous check (optima hug the obstacle, so between samples they often graze "
                "it).", "")
-    result = solve(case2, "A", seed=0)
-    report.figure(plot.plot_motion(case2, result.best_x, title="Case II: best path"),
+    report.figure(plot.plot_motion(case2, results[case2.name].best_x, title="Case II: best path"),
                   "case2_motion.png", "Case II motion")
 
 

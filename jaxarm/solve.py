@@ -1,6 +1,7 @@
 """``solve``: many independent PSO restarts in one compiled program.
 
-Restarts are vmapped, iterations run in ``lax.scan``. Restart i draws everything from
+Restarts are vmapped (and sharded over all devices when there are several), iterations run in
+``lax.scan``. Restart i draws everything from
 ``fold_in(key(seed), i)`` (and iteration t from ``fold_in`` of that with t), so its result does not
 depend on how many restarts run beside it or how they are chunked. The compiled program is
 specialised only on sizes and modes (``ProblemSpec``, particles, iterations, restarts, the
@@ -109,32 +110,56 @@ def _one_restart(key, spec, arrays, numbers, structure, low, high, init_particle
 
 
 def search(spec: ProblemSpec, arrays: ProblemArrays, numbers, structure, low, high, seed,
-           first_restart, init_particles, *, n_particles: int, n_iters: int, n_restarts: int,
+           restart_ids, init_particles, *, n_particles: int, n_iters: int,
            constraint: str) -> RestartOutcome:
-    """Run restarts ``first_restart .. first_restart + n_restarts - 1`` (pure; jit below).
+    """Run the restarts numbered ``restart_ids`` (pure; jit below).
 
     Args:
       spec: static problem part; arrays: its data.
       numbers, structure: ``PSOConfig.numbers()`` and ``.structure()``.
       low, high: init range, shape (n_free,).
-      seed: int32 scalar; first_restart: int32 scalar index of the first restart.
+      seed: int32 scalar.
+      restart_ids: int32, shape (n_restarts,); restart i uses ``fold_in(key(seed), i)``.
       init_particles: None or shape (n_given, n_free).
 
     Returns:
       ``RestartOutcome`` with leading axis n_restarts.
     """
-    keys = jax.vmap(lambda i: jax.random.fold_in(jax.random.key(seed), i))(
-        first_restart + jnp.arange(n_restarts)
-    )
+    keys = jax.vmap(lambda i: jax.random.fold_in(jax.random.key(seed), i))(restart_ids)
     run = lambda key: _one_restart(key, spec, arrays, numbers, structure, low, high,  # noqa: E731
                                    init_particles, n_particles, n_iters, constraint)
     return jax.vmap(run)(keys)
 
 
 compiled_search = jax.jit(
-    search,
-    static_argnames=("spec", "structure", "n_particles", "n_iters", "n_restarts", "constraint"),
+    search, static_argnames=("spec", "structure", "n_particles", "n_iters", "constraint")
 )
+
+
+RESTART_BLOCK = 8
+
+
+def restart_ids(first_restart: int, n_restarts: int) -> jax.Array:
+    """Restart numbers ``first .. first + n - 1``, sharded over all devices when there are several.
+
+    The ids are padded to a multiple of 8 per device (the extra restarts are computed and
+    dropped); with d devices they are split along a one-axis mesh, so each device runs its share of the restarts;
+    each restart's result is the same on 1 or d devices. Under multi-host JAX
+    (``jax.distributed.initialize()`` first), ``jax.devices()`` spans every host and the same
+    mesh spreads restarts across them.
+    """
+    devices = jax.devices()
+    # Padding to a multiple of 8 restarts per device keeps every call on the same vectorised
+    # code path: XLA's CPU loops round differently for batches of a few restarts, which would
+    # change the last bits of a restart's fitness with the number of restarts beside it.
+    block = RESTART_BLOCK * len(devices)
+    n_padded = -(-n_restarts // block) * block
+    ids = np.arange(first_restart, first_restart + n_padded, dtype=np.int32)
+    if len(devices) == 1:
+        return jnp.asarray(ids)
+    mesh = jax.sharding.Mesh(np.array(devices), ("restarts",))
+    sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("restarts"))
+    return jax.device_put(ids, sharding)
 
 
 def method_name(method) -> str:
@@ -214,10 +239,10 @@ def run_restarts(problem, config, constraint, n_particles, n_iters, seed, first_
     low, high = (jnp.asarray(b, dtype=jnp.result_type(float)) for b in problem.bounds())
     outcome = compiled_search(
         problem.spec, problem.arrays, config.numbers(), config.structure(), low, high,
-        jnp.int32(seed), jnp.int32(first_restart), init_particles,
-        n_particles=n_particles, n_iters=n_iters, n_restarts=n_restarts, constraint=constraint,
+        jnp.int32(seed), restart_ids(first_restart, n_restarts), init_particles,
+        n_particles=n_particles, n_iters=n_iters, constraint=constraint,
     )
-    return RestartOutcome(*(np.asarray(a) for a in outcome))
+    return RestartOutcome(*(np.asarray(a)[:n_restarts] for a in outcome))
 
 
 def _check_init_particles(problem, init_particles, n_particles):

@@ -132,3 +132,13 @@ def test_unknown_scenario_lists_the_shipped_ones():
 def test_bad_worlds(world, message):
     with pytest.raises(ValueError, match=message):
         jaxarm.World(**world)
+
+
+def test_float32_sincos_is_accurate_over_a_wide_range():
+    from jaxarm.arm import sincos
+
+    angle = np.linspace(-2000.0, 2000.0, 400_001, dtype=np.float32)
+    sine, cosine = sincos(jax.numpy.asarray(angle))
+    reference = angle.astype(np.float64)
+    assert np.abs(np.asarray(sine) - np.sin(reference)).max() < 5e-7
+    assert np.abs(np.asarray(cosine) - np.cos(reference)).max() < 5e-7

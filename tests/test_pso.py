@@ -168,20 +168,23 @@ def test_same_seed_gives_bit_identical_results(case2):
     assert not np.array_equal(first.restart_best_x, other.restart_best_x)
 
 
-def test_restart_results_do_not_depend_on_how_many_run(case2):
-    eight = jaxarm.solve(case2, "B", n_restarts=8, seed=3, constraint="feasibility", **SMALL)
+@pytest.mark.parametrize("n_restarts", [3, 8])
+def test_restart_results_do_not_depend_on_how_many_run(case2, n_restarts):
+    few = jaxarm.solve(case2, "B", n_restarts=n_restarts, seed=3, constraint="feasibility",
+                       **SMALL)
     sixteen = jaxarm.solve(case2, "B", n_restarts=16, seed=3, constraint="feasibility", **SMALL)
-    np.testing.assert_array_equal(eight.restart_best_x, sixteen.restart_best_x[:8])
-    np.testing.assert_array_equal(eight.restart_escape_iter, sixteen.restart_escape_iter[:8])
-    np.testing.assert_array_equal(eight.restart_history, sixteen.restart_history[:8])
+    np.testing.assert_array_equal(few.restart_best_x, sixteen.restart_best_x[:n_restarts])
+    np.testing.assert_array_equal(few.restart_escape_iter,
+                                  sixteen.restart_escape_iter[:n_restarts])
+    np.testing.assert_array_equal(few.restart_history, sixteen.restart_history[:n_restarts])
 
 
 def test_jit_equals_no_jit_on_one_restart(case2):
     config = pso.PRESETS["C"]
     args = (case2.spec, case2.arrays, config.numbers(), config.structure(),
-            *(jnp.asarray(b, jnp.float32) for b in case2.bounds()), jnp.int32(0), jnp.int32(0),
-            None)
-    sizes = dict(n_particles=4, n_iters=3, n_restarts=1, constraint="feasibility")
+            *(jnp.asarray(b, jnp.float32) for b in case2.bounds()), jnp.int32(0),
+            jnp.zeros(1, jnp.int32), None)
+    sizes = dict(n_particles=4, n_iters=3, constraint="feasibility")
     jitted = compiled_search(*args, **sizes)
     with jax.disable_jit():
         eager = jaxarm.solve.__globals__["search"](*args, **sizes)
@@ -272,3 +275,28 @@ def test_case_1_feasibility_rules_escape_where_the_death_penalty_mostly_fails(ca
 @pytest.mark.parametrize("method", ["B", "C"])
 def test_case_1_death_penalty_presets_b_and_c_mostly_fail(case1, method):
     assert _escape_rate(case1, method, "death") < 0.8
+
+
+SHARDED_SCRIPT = """
+import numpy as np, jax, jaxarm
+assert len(jax.devices()) == 2, jax.devices()
+result = jaxarm.solve(jaxarm.load_scenario("paper-case-2"), "A", n_particles=8, n_iters=12,
+                      n_restarts=7, seed=4, constraint="feasibility")
+np.save(OUT, np.concatenate([result.restart_best_x.ravel(), result.restart_history.ravel()]))
+"""
+
+
+def test_restarts_sharded_over_two_devices_match_one_device(case2, tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "two_devices.npy"
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2",
+               JAX_PLATFORMS="cpu")
+    subprocess.run([sys.executable, "-c", f"OUT = {str(out)!r}" + SHARDED_SCRIPT], env=env,
+                   check=True, timeout=300)
+    result = jaxarm.solve(case2, "A", n_restarts=7, seed=4, constraint="feasibility", **SMALL)
+    np.testing.assert_array_equal(
+        np.load(out),
+        np.concatenate([result.restart_best_x.ravel(), result.restart_history.ravel()]))

@@ -1,0 +1,271 @@
+"""jaxarm against the tools people use, on the same scenarios and the same geometry.
+
+- jaxarm PSO (preset A) with the death penalty and with feasibility rules;
+- pyswarms GlobalBestPSO and evosax PSO (20 particles, 100 iterations, same initial range),
+  driving jaxarm's fitness: the death penalty (cost = -fitness) and a penalty (cost =
+  -fitness + violation, which ranks colliding paths by penetration like feasibility rules);
+- OMPL RRTConnect with path simplification, in joint space, with a validity checker on the same
+  link/obstacle geometry (NumPy, per posture).
+
+Metrics per method: success rate (a collision-free path at the end) with a 95 % Wilson interval,
+wall time per run, median time to the first feasible path, median joint-space path length
+(integral of |dtheta/dr|), median maximum jerk max |d^3 theta / d r^3| with every path
+parameterised over r in [0, 1] (OMPL's waypoints by a clamped cubic spline in arc length).
+Requires ``pip install -e '.[bench]'``.
+
+    .venv/bin/python benchmarks/peers.py [--seeds 30] [--scenarios paper-case-1,...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+import jaxarm
+from jaxarm.problem import evaluate
+from jaxarm.study import wilson_interval
+
+N_PARTICLES, N_ITERS = 20, 100
+
+
+def path_metrics(problem, x):
+    """Joint-space length and max jerk of a polynomial path, over r in [0, 1]."""
+    r = np.linspace(0.0, 1.0, 2001)
+    velocity = np.asarray(jaxarm.joint_path(problem, x, r, order=1), np.float64)
+    jerk = np.asarray(jaxarm.joint_path(problem, x, r, order=3), np.float64)
+    length = np.trapezoid(np.linalg.norm(velocity, axis=-1), r)
+    return length, np.abs(jerk).max()
+
+
+def waypoint_metrics(waypoints):
+    """Joint-space length and max jerk of a waypoint path, splined over r in [0, 1]."""
+    steps = np.linalg.norm(np.diff(waypoints, axis=0), axis=1)
+    length = steps.sum()
+    r = np.concatenate([[0.0], np.cumsum(steps)]) / max(length, 1e-12)
+    spline = CubicSpline(r, waypoints, bc_type="clamped")
+    jerk = spline(np.linspace(0.0, 1.0, 2001), 3)
+    return length, np.abs(jerk).max()
+
+
+class Row(dict):
+    pass
+
+
+def summarise(name, successes, seconds, first_times, lengths, jerks):
+    successes = np.asarray(successes, bool)
+    low, high = wilson_interval(int(successes.sum()), len(successes))
+    median = lambda v: float(np.median(v)) if len(v) else float("nan")  # noqa: E731
+    return Row(method=name, success=successes.mean(), low=low, high=high,
+               seconds=float(np.mean(seconds)), first=median(first_times),
+               length=median(lengths), jerk=median(jerks))
+
+
+def run_jaxarm(problem, constraint, n_seeds):
+    jaxarm.solve(problem, "A", n_restarts=n_seeds, constraint=constraint)  # compile
+    began = time.perf_counter()
+    result = jaxarm.solve(problem, "A", n_restarts=n_seeds, constraint=constraint, seed=1)
+    per_run = (time.perf_counter() - began) / n_seeds
+    jaxarm.solve(problem, "A", n_restarts=1, constraint=constraint)  # compile one restart
+    began = time.perf_counter()
+    jaxarm.solve(problem, "A", n_restarts=1, constraint=constraint, seed=1)
+    single = time.perf_counter() - began
+    ok = result.restart_best_violation == 0
+    escape = result.restart_escape_iter[ok]
+    metrics = [path_metrics(problem, x) for x in result.restart_best_x[ok]]
+    return summarise(f"jaxarm PSO A, {constraint}", ok, [per_run],
+                     single * (escape + 1) / (N_ITERS + 1),
+                     [m[0] for m in metrics], [m[1] for m in metrics])
+
+
+compiled_evaluate = jax.jit(evaluate, static_argnums=0)
+
+
+def _cost_fn(problem, penalty):
+    def cost(x):
+        evaluation = compiled_evaluate(problem.spec, problem.arrays, jnp.asarray(x, jnp.float32))
+        value = -np.asarray(evaluation.fitness, np.float64)
+        return value + np.asarray(evaluation.violation) if penalty else value
+    return cost
+
+
+def run_pyswarms(problem, penalty, n_seeds):
+    import pyswarms
+
+    low, high = problem.bounds()
+    cost = _cost_fn(problem, penalty)
+    successes, seconds, firsts, lengths, jerks = [], [], [], [], []
+    for seed in range(n_seeds):
+        rng = np.random.default_rng(seed)
+        np.random.seed(seed)
+        init = rng.uniform(low, high, (N_PARTICLES, problem.n_free))
+        optimizer = pyswarms.single.GlobalBestPSO(
+            N_PARTICLES, problem.n_free, options={"c1": 1.5, "c2": 1.5, "w": 0.7}, init_pos=init)
+        began = time.perf_counter()
+        _, best = optimizer.optimize(cost, iters=N_ITERS, verbose=False)
+        elapsed = time.perf_counter() - began
+        ok = not bool(jaxarm.collides(problem, best))
+        successes.append(ok)
+        seconds.append(elapsed)
+        if ok:
+            feasible_costs = np.asarray(optimizer.cost_history) < 0
+            first = int(np.argmax(feasible_costs)) if feasible_costs.any() else N_ITERS
+            firsts.append(elapsed * (first + 1) / N_ITERS)
+            length, jerk = path_metrics(problem, best)
+            lengths.append(length)
+            jerks.append(jerk)
+    return summarise(f"pyswarms GlobalBestPSO, {'penalty' if penalty else 'death'}", successes,
+                     seconds, firsts, lengths, jerks)
+
+
+def run_evosax(problem, penalty, n_seeds):
+    from evosax.algorithms import PSO
+
+    low, high = (jnp.asarray(b, jnp.float32) for b in problem.bounds())
+    strategy = PSO(population_size=N_PARTICLES, solution=jnp.zeros(problem.n_free))
+    params = strategy.default_params.replace(inertia_coeff=0.7, cognitive_coeff=1.5,
+                                             social_coeff=1.5)
+    spec, arrays = problem.spec, problem.arrays
+
+    def cost(x):
+        evaluation = evaluate(spec, arrays, x)
+        return -evaluation.fitness + (evaluation.violation if penalty else 0.0)
+
+    def one_seed(key):
+        init_key, key = jax.random.split(key)
+        population = low + (high - low) * jax.random.uniform(init_key, (N_PARTICLES, low.size))
+        state = strategy.init(key, population, cost(population), params)
+
+        def body(state, key):
+            ask_key, tell_key = jax.random.split(key)
+            population, state = strategy.ask(ask_key, state, params)
+            state, _ = strategy.tell(tell_key, population, cost(population), state, params)
+            return state, state.best_fitness
+
+        state, best_costs = jax.lax.scan(body, state, jax.random.split(key, N_ITERS))
+        return state.best_solution, best_costs
+
+    run = jax.jit(jax.vmap(one_seed))
+    keys = jax.random.split(jax.random.key(0), n_seeds)
+    jax.block_until_ready(run(keys))  # compile
+    began = time.perf_counter()
+    best_x, best_costs = jax.block_until_ready(run(keys))
+    per_run = (time.perf_counter() - began) / n_seeds
+    best_x, best_costs = np.asarray(best_x), np.asarray(best_costs)
+    ok = ~np.asarray(jaxarm.collides(problem, best_x))
+    firsts = [per_run * (int(np.argmax(c < 0)) + 1) / N_ITERS for c in best_costs[ok]]
+    metrics = [path_metrics(problem, x) for x in best_x[ok]]
+    return summarise(f"evosax PSO, {'penalty' if penalty else 'death'}", ok, [per_run], firsts,
+                     [m[0] for m in metrics], [m[1] for m in metrics])
+
+
+def posture_checker(problem):
+    """A fast NumPy check of one posture against the problem's obstacles (open sets)."""
+    arrays = problem.arrays
+    world = arrays.world
+    circles = world.circles[world.circle_valid]
+    polygons = [(world.normals[p][world.edge_valid[p]], world.extent_low[p][world.edge_valid[p]],
+                 world.extent_high[p][world.edge_valid[p]], world.vertices[p])
+                for p in np.nonzero(world.polygon_valid)[0]]
+
+    def free(q):
+        absolute = np.cumsum(q)
+        ends = np.cumsum(arrays.lengths[:, None]
+                         * np.stack([np.cos(absolute), np.sin(absolute)], -1), axis=0)
+        starts = np.vstack([[0.0, 0.0], ends[:-1]])
+        d = ends - starts
+        for cx, cy, radius in circles:
+            t = np.clip(((cx - starts[:, 0]) * d[:, 0] + (cy - starts[:, 1]) * d[:, 1])
+                        / (d**2).sum(1), 0, 1)
+            if np.any(np.hypot(starts[:, 0] + t * d[:, 0] - cx,
+                               starts[:, 1] + t * d[:, 1] - cy) < radius):
+                return False
+        normal = np.stack([-d[:, 1], d[:, 0]], -1) / np.linalg.norm(d, axis=1, keepdims=True)
+        offset = (normal * starts).sum(1)
+        for normals, low, high, vertices in polygons:
+            a, b = starts @ normals.T, ends @ normals.T
+            gap = np.maximum(np.minimum(a, b) - high, low - np.maximum(a, b)).max(1)
+            along = normal @ vertices.T
+            gap = np.maximum(gap, np.maximum(along.min(1) - offset, offset - along.max(1)))
+            if np.any(gap < 0):
+                return False
+        return True
+
+    return free
+
+
+def run_ompl(problem, n_seeds, budget=1.0):
+    from ompl import base as ob, geometric as og, util as ou
+
+    ou.setLogLevel(ou.LogLevel.LOG_ERROR)
+    n = problem.n_joints
+    start, goal = np.asarray(problem.start), np.asarray(problem.goal)
+    space = ob.RealVectorStateSpace(n)
+    bounds = ob.RealVectorBounds(n)
+    for j in range(n):
+        bounds.setLow(j, min(start[j], goal[j]) - np.pi)
+        bounds.setHigh(j, max(start[j], goal[j]) + np.pi)
+    space.setBounds(bounds)
+    free = posture_checker(problem)
+    successes, seconds, firsts, lengths, jerks = [], [], [], [], []
+    for _ in range(n_seeds):  # one RNG stream, seeded once in main(): runs are repeatable
+        setup = og.SimpleSetup(space)
+        setup.setStateValidityChecker(lambda s: free(np.array([s[j] for j in range(n)])))
+        setup.getSpaceInformation().setStateValidityCheckingResolution(0.002)
+        s, g = space.allocState(), space.allocState()
+        for j in range(n):
+            s[j], g[j] = float(start[j]), float(goal[j])
+        setup.setStartAndGoalStates(s, g)
+        setup.setPlanner(og.RRTConnect(setup.getSpaceInformation()))
+        began = time.perf_counter()
+        solved = setup.solve(budget)
+        first = time.perf_counter() - began
+        ok = bool(solved) and setup.haveExactSolutionPath()
+        if ok:
+            setup.simplifySolution()
+        seconds.append(time.perf_counter() - began)
+        successes.append(ok)
+        if ok:
+            found = setup.getSolutionPath()
+            waypoints = np.array([[found.getState(i)[j] for j in range(n)]
+                                  for i in range(found.getStateCount())])
+            firsts.append(first)
+            length, jerk = waypoint_metrics(waypoints)
+            lengths.append(length)
+            jerks.append(jerk)
+    return summarise("OMPL RRTConnect + simplify", successes, seconds, firsts, lengths, jerks)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=30)
+    parser.add_argument("--scenarios", default="paper-case-1,paper-case-2,narrow-gap,death-trap")
+    args = parser.parse_args()
+    from ompl import util
+
+    util.RNG.setSeed(1)  # before any planner samples
+    print(f"jax {jax.__version__} ({jax.default_backend()}), {args.seeds} seeds per method, "
+          f"{N_PARTICLES} particles x {N_ITERS} iterations for the PSOs, 1 s budget for OMPL")
+    for name in args.scenarios.split(","):
+        problem = jaxarm.load_scenario(name)
+        rows = [run_jaxarm(problem, "death", args.seeds),
+                run_jaxarm(problem, "feasibility", args.seeds),
+                run_pyswarms(problem, False, args.seeds), run_pyswarms(problem, True, args.seeds),
+                run_evosax(problem, False, args.seeds), run_evosax(problem, True, args.seeds),
+                run_ompl(problem, args.seeds)]
+        print(f"\n### {name}\n")
+        print("| method | success [95 % CI] | s per run | median s to first feasible | "
+              "median joint-space length (rad) | median max jerk (rad / r^3) |")
+        print("|---|---|---|---|---|---|")
+        for row in rows:
+            print(f"| {row['method']} | {row['success']:.0%} [{row['low']:.0%}, "
+                  f"{row['high']:.0%}] | {row['seconds']:.4f} | {row['first']:.4f} | "
+                  f"{row['length']:.3f} | {row['jerk']:.0f} |")
+
+
+if __name__ == "__main__":
+    main()
