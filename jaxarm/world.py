@@ -216,6 +216,12 @@ def _leading(values, ndim: int):
     return values.reshape(values.shape[:1] + (1,) * ndim)
 
 
+def _on_end_points(kernel, start, end, world):
+    """Apply an ``*_xy`` kernel to end points of shape (..., 2); obstacle slots come last."""
+    coordinates = (start[..., 0], start[..., 1], end[..., 0], end[..., 1])
+    return jnp.moveaxis(kernel(*coordinates, world), 0, -1)
+
+
 def point_segment_distance(px, py, ax, ay, bx, by):
     """Distance from points (px, py) to segments (a, b); all arguments broadcast together."""
     dx, dy = bx - ax, by - ay
@@ -237,9 +243,7 @@ def circle_separation(start, end, world: WorldArrays):
     Returns:
       Array of shape (..., n_circle_slots): distance minus radius; +inf for empty slots.
     """
-    return jnp.moveaxis(
-        circle_separation_xy(start[..., 0], start[..., 1], end[..., 0], end[..., 1], world), 0, -1
-    )
+    return _on_end_points(circle_separation_xy, start, end, world)
 
 
 def circle_separation_xy(sx, sy, ex, ey, world: WorldArrays):
@@ -265,9 +269,7 @@ def polygon_overlap_gap(start, end, world: WorldArrays):
     Returns:
       Array of shape (..., n_polygon_slots); +inf for empty slots.
     """
-    return jnp.moveaxis(
-        polygon_overlap_gap_xy(start[..., 0], start[..., 1], end[..., 0], end[..., 1], world), 0, -1
-    )
+    return _on_end_points(polygon_overlap_gap_xy, start, end, world)
 
 
 def polygon_overlap_gap_xy(sx, sy, ex, ey, world: WorldArrays):
@@ -311,9 +313,7 @@ def polygon_separation(start, end, world: WorldArrays):
     Returns:
       Array of shape (..., n_polygon_slots).
     """
-    return jnp.moveaxis(
-        polygon_separation_xy(start[..., 0], start[..., 1], end[..., 0], end[..., 1], world), 0, -1
-    )
+    return _on_end_points(polygon_separation_xy, start, end, world)
 
 
 def polygon_separation_xy(sx, sy, ex, ey, world: WorldArrays):
@@ -347,9 +347,7 @@ def separation(start, end, world: WorldArrays):
     Returns:
       Array of shape (..., n_circle_slots + n_polygon_slots); +inf for empty slots.
     """
-    return jnp.moveaxis(
-        separation_xy(start[..., 0], start[..., 1], end[..., 0], end[..., 1], world), 0, -1
-    )
+    return _on_end_points(separation_xy, start, end, world)
 
 
 def separation_xy(sx, sy, ex, ey, world: WorldArrays):
@@ -366,9 +364,7 @@ def penetration(start, end, world: WorldArrays):
 
     Cheaper than ``separation`` (no distances for disjoint polygons); zero iff no overlap.
     """
-    return jnp.moveaxis(
-        penetration_xy(start[..., 0], start[..., 1], end[..., 0], end[..., 1], world), 0, -1
-    )
+    return _on_end_points(penetration_xy, start, end, world)
 
 
 def penetration_xy(sx, sy, ex, ey, world: WorldArrays):
