@@ -20,7 +20,7 @@ import numpy as np
 
 from jaxarm import pso
 from jaxarm._validate import positive_int
-from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, evaluate
+from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, collides, evaluate
 
 
 class Result(NamedTuple):
@@ -273,11 +273,7 @@ def _result(problem, method, config, constraint, seed, outcome: RestartOutcome, 
     best = _best_restart(outcome.best_fitness, outcome.best_violation)
     best_x = outcome.best_x[best]
     feasible = bool(outcome.best_violation[best] == 0)
-    certified_problem = problem.replace(collision="certified")
-    certified = feasible and not bool(
-        np.asarray(evaluate(certified_problem.spec, certified_problem.arrays,
-                            jnp.asarray(best_x)).violation) > 0
-    )
+    certified = feasible and not bool(collides(problem.replace(collision="certified"), best_x))
     return Result(
         best_x=best_x,
         best_fitness=float(outcome.best_fitness[best]),
