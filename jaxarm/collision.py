@@ -1,5 +1,8 @@
 """Collision checks of a whole motion: the paper's sampled check and a certified continuous one.
 
+Both walk along the path one sample of r at a time (``path.fold_samples``), so the working set
+stays a few arrays of the batch shape.
+
 ``sampled`` (the paper's Fig. 8): the links are checked against every obstacle at the ``n``
 equally spaced samples of r. A thin obstacle can slip between two samples.
 
@@ -9,30 +12,36 @@ Proof sketch. A point p of link k is ``p = sum_{i<k} l_i u(phi_i) + t l_k u(phi_
 ``phi_i = theta_1 + ... + theta_i``. Its velocity is ``sum_{j<=k} theta_j'(r) J (p - q_{j-1})``
 (q_{j-1} the position of joint j-1, J the 90 degree rotation), so
 ``|dp/dr| <= sum_{j<=k} |theta_j'(r)| R_{jk}`` with ``R_{jk} = l_j + ... + l_k``, which bounds
-``|p - q_{j-1}|``. On an interval [r_s, r_s + h], ``M_j`` bounds ``|theta_j'|``: the exact
-Taylor expansion of the polynomial ``theta_j'`` at either end gives
-``|theta_j'(r_s + t)| <= sum_{m>=1} |theta_j^(m)(r_s)| h^(m-1) / (m-1)!`` (we take the smaller of
-the expansions from both ends). So each point of link k moves at most
-``delta_k = h sum_j M_j R_{jk}`` over the interval, split as D1 + D2 <= delta_k before and
-after any instant r. If c_s and c_{s+1} are the link's clearances (distance to the nearest
-obstacle) at the two ends, the point's clearance at r is at least
-``max(c_s - D1, c_{s+1} - D2) >= (c_s + c_{s+1} - delta_k) / 2``. Hence
-``c_s >= 0, c_{s+1} >= 0 and c_s + c_{s+1} >= delta_k`` for every link proves that no point
-enters an obstacle's interior during the interval (obstacles are open sets, see ``world``). Intervals where this fails are subdivided: the ``refine_intervals`` worst intervals are
-split into ``refine_factor`` pieces (postures there from the same exact Taylor expansion, the
-speed bound of the whole interval reused) and the same test is applied to every piece. A motion with
-a failing interval left over is reported as colliding (conservative). The guarantee holds up
-to floating-point rounding of the geometry.
+``|p - q_{j-1}|``. Around each sample r_s take the window ``|r - r_s| <= rho`` with
+``rho = h / 2`` (h the sample spacing): the windows cover [0, 1]. The exact Taylor expansion of
+the polynomial ``theta_j'`` at r_s bounds ``|theta_j'|`` on the window by
+``M_j = sum_{m>=1} |theta_j^(m)(r_s)| rho^(m-1) / (m-1)!``, so within the window every point of
+link k stays within ``delta_k = rho sum_j M_j R_{jk}`` of where it is at r_s. If c_k is a lower
+bound on link k's distance to the nearest obstacle at r_s (``world.separation_bound_xy``: exact
+for circles, the separating-axis gap for polygons), then ``c_k >= delta_k`` for every link proves
+that no point of the arm enters an obstacle's interior during the window (obstacles are open
+sets, see ``world``). Each window's *shortfall* is ``max_k (delta_k - c_k)``; it is <= 0 iff the
+window is certified. The ``refine_intervals`` windows with the largest shortfall are split into
+``refine_factor`` sub-windows, each tested the same way about its own centre with its own
+radius. A motion with a window left uncertified is reported as colliding (conservative). The
+guarantee holds up to floating-point rounding of the geometry.
 
-Violation (for constraint handling) is the penetration depth summed over links, obstacles and
-samples, times the sample spacing (about the integral of penetration over r, in cm); in
-certified mode the clearance deficit of intervals that could not be certified is added, so in
-both modes ``violation == 0`` exactly when the motion counts as collision-free.
+Each test reads one posture and the path's derivatives at one time, so a window's shortfall is
+a single value computed in a single fused loop; a test that compares neighbouring samples would
+need several values per step, which XLA computes in separate loops, repeating the geometry.
+
+Violation (for constraint handling): in sampled mode the penetration depth summed over links,
+obstacles and samples, times the sample spacing (about the integral of penetration over r, in
+cm); in certified mode the positive shortfalls of the windows summed, times the spacing (a
+penetrating sample has a shortfall of at least its depth). In both modes ``violation == 0``
+exactly when the motion counts as collision-free.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -58,19 +67,6 @@ def penetration(lengths, world, theta):
                       for link in links], axis=-2)
 
 
-def total_penetration(lengths, world, theta):
-    """Penetration summed over links, obstacles and the last batch axis (the samples).
-
-    Args:
-      theta: joint angles, shape (..., n_samples, n_joints).
-
-    Returns:
-      Array of shape (...,).
-    """
-    return sum(world_lib.penetration_xy(*link, world).sum(axis=(0, -1))
-               for link in link_endpoints(lengths, theta))
-
-
 def _nearest(separation):
     """Min over obstacle slots (the leading axis); +inf for a world without obstacles."""
     if separation.shape[0] == 0:
@@ -91,19 +87,48 @@ def clearance(lengths, world, theta):
     return jnp.stack([_nearest(world_lib.separation_xy(*link, world)) for link in links], axis=-1)
 
 
-def clearance_and_penetration(lengths, world, theta):
-    """``clearance`` and ``total_penetration`` from one pass over the geometry.
+def posture_penetration(lengths, world, theta: list):
+    """Penetration summed over links and obstacle slots at one posture per path.
 
     Args:
-      theta: joint angles, shape (..., n_samples, n_joints).
+      theta: per-joint angles, each of shape (...,).
 
     Returns:
-      Clearance of shape (..., n_samples, n_joints) and total penetration of shape (...,).
+      Array of shape (...,), >= 0, zero iff no link overlaps any obstacle.
     """
-    separations = [world_lib.separation_xy(*link, world)
-                   for link in link_endpoints(lengths, theta)]
-    depth = sum(jnp.maximum(-s, 0.0).sum(axis=(0, -1)) for s in separations)
-    return jnp.stack([_nearest(s) for s in separations], axis=-1), depth
+    return sum(world_lib.penetration_xy(*link, world).sum(axis=0)
+               for link in link_endpoints(lengths, theta))
+
+
+def posture_clearance_bound(lengths, world, theta: list) -> list:
+    """Lower bounds on every link's distance to the nearest obstacle at one posture per path.
+
+    Args:
+      theta: per-joint angles, each of shape (...,).
+
+    Returns:
+      A list of n_joints arrays of shape (...,); negative values are minus a penetration depth.
+    """
+    return [_nearest(world_lib.separation_bound_xy(*link, world))
+            for link in link_endpoints(lengths, theta)]
+
+
+def sampled_violation(lengths, world, start, goal, x, degree: int, n_samples: int):
+    """The paper's check: penetration summed over the samples, times their spacing.
+
+    Args:
+      lengths, world, start, goal: the problem's arrays.
+      x: free parameters, shape (..., n_free).
+
+    Returns:
+      Array of shape (...,), >= 0, zero iff no sample collides.
+    """
+    def add_sample(total, sample):
+        return total + posture_penetration(lengths, world, sample.derivatives[0]), None
+
+    total, _ = path.fold_samples(add_sample, jnp.zeros(x.shape[:-1], x.dtype), start, goal, x,
+                                 degree, n_samples)
+    return total / (n_samples - 1)
 
 
 def reach_matrix(lengths):
@@ -121,105 +146,172 @@ def reach_matrix(lengths):
     return jnp.where(upper, reach, 0.0)
 
 
-def _taylor_speed(derivatives, step: float):
-    """Bound on |theta_j'| over [r_s, r_s + step] from the exact Taylor expansion at r_s.
+def _tail_weights(degree: int, centres: np.ndarray, radius: float, spread: float = 0.0):
+    """Weights ``T_q`` bounding the Taylor tail of every basis function's derivative.
+
+    For a path ``theta = theta_i + Delta q_0 + sum_p a_p q_p`` (``path.basis_values``) and any r
+    within ``radius`` of a centre c, ``|theta'(r)| <= |theta'(c)| + |Delta| T_0 + sum_p |a_p|
+    T_p`` with ``T_q = sum_{m>=2} sup |q^(m)| radius^(m-1) / (m-1)!`` (exact Taylor expansion of
+    a polynomial, then the triangle inequality). The sup is over centres within ``spread`` of
+    the given ones, bounded by a second exact expansion; computed in float64.
 
     Args:
-      derivatives: ``[theta, theta', ..., theta^(d)]`` at the samples, each (..., n_s, n_joints).
-      step: signed interval length (negative expands backwards from r_s).
+      centres: times, shape (n,).
 
     Returns:
-      Array of shape (..., n_s, n_joints).
+      Array of shape (n, degree - 4).
     """
-    return sum(
-        jnp.abs(derivatives[order]) * (abs(step) ** (order - 1) / math.factorial(order - 1))
-        for order in range(1, len(derivatives))
+    derivatives = [np.abs(path.basis_values(degree, centres, order))
+                   for order in range(degree + 1)]
+    total = np.zeros_like(derivatives[0])
+    for order in range(2, degree + 1):
+        sup = sum(derivatives[order + n] * spread**n / math.factorial(n)
+                  for n in range(degree + 1 - order))
+        total += sup * radius ** (order - 1) / math.factorial(order - 1)
+    return total
+
+
+def _speed_bound(start, goal, x, velocity: list, tail) -> list:
+    """Bounds on |theta_j'| over a window, from the velocity at its centre and tail weights.
+
+    Args:
+      velocity: per-joint ``theta_j'`` at the window's centre, each of shape (...,).
+      tail: ``_tail_weights`` of the window, shape (degree - 4,) or (..., degree - 4).
+
+    Returns:
+      A list of n_joints arrays of shape (...,).
+    """
+    delta = jnp.abs(jnp.asarray(goal, x.dtype) - jnp.asarray(start, x.dtype))
+    tails = path.joint_angle_list(jnp.zeros_like(delta), delta, jnp.abs(x), tail, order=1,
+                                  per_path=tail.ndim > 1)
+    return [jnp.abs(v) + t for v, t in zip(velocity, tails)]
+
+
+def window_shortfall(lengths, world, theta: list, speed: list, radius: float):
+    """How far the window ``|r - r_c| <= radius`` around a posture is from certified (cm).
+
+    Args:
+      lengths, world: the problem's arrays.
+      theta: per-joint angles at the centre r_c, each of shape (...,).
+      speed: per-joint bounds on |theta_j'| over the window (``_speed_bound``), each (...,).
+      radius: the window's half-width in r.
+
+    Returns:
+      Array of shape (...,): ``max_k (delta_k - c_k)``, <= 0 iff the window is certified free.
+    """
+    reach = reach_matrix(jnp.asarray(lengths, dtype=theta[0].dtype))
+    clearance_bounds = posture_clearance_bound(lengths, world, theta)
+    return functools.reduce(jnp.maximum, [
+        radius * sum(speed[j] * reach[j, k] for j in range(k + 1)) - bound
+        for k, bound in enumerate(clearance_bounds)
+    ])
+
+
+class _FailingWindows(NamedTuple):
+    """Running record of the windows that failed, carried along the samples."""
+
+    pending: jax.Array  # shape=(...,), the previous sample's shortfall, not yet recorded
+    count: jax.Array  # shape=(...,), int32: failing windows recorded so far
+    first: jax.Array  # shape=(n_refined, ...), int32: sample indices of the first failures
+    excess: jax.Array  # shape=(...,), summed shortfall of failures beyond the first n_refined
+
+
+def _record(record: _FailingWindows, index) -> _FailingWindows:
+    """Record ``record.pending`` as the shortfall of the window around sample ``index``."""
+    failing = record.pending > 0
+    slot = jnp.arange(record.first.shape[0]).reshape((-1,) + (1,) * record.count.ndim)
+    return record._replace(
+        count=record.count + failing,
+        first=jnp.where(failing & (slot == record.count), index, record.first),
+        excess=record.excess + jnp.where(failing & (record.count >= record.first.shape[0]),
+                                         record.pending, 0.0),
     )
 
 
-def _sweep(lengths, speed, step: float):
-    """How far any point of each link can move over an interval, ``step * sum_j M_j R_jk``.
+def certified_violation(lengths, world, start, goal, x, degree: int, n_samples: int,
+                        refine_intervals: int, refine_factor: int):
+    """Violation under the certified continuous check (see the module docstring).
 
-    Args:
-      speed: bounds ``M_j`` on |theta_j'| over each interval, shape (..., n_intervals, n_joints).
-
-    Returns:
-      Array of shape (..., n_intervals, n_joints).
-    """
-    reach = reach_matrix(jnp.asarray(lengths, dtype=speed.dtype))
-    # Unrolled over the few joints: elementwise work fuses, a tiny matmul does not.
-    return sum(speed[..., j, None] * reach[j] for j in range(reach.shape[0])) * step
-
-
-def _deficit(sweep, c_left, c_right):
-    """How far each interval is from certified: <= 0 iff, for every link, both ends are free
-    (clearance >= 0) and ``sweep <= c_left + c_right``; otherwise positive (cm).
-
-    Args:
-      sweep, c_left, c_right: shape (..., n_intervals, n_joints).
-
-    Returns:
-      Array of shape (..., n_intervals).
-    """
-    per_link = jnp.maximum(sweep - c_left - c_right, jnp.maximum(-c_left, -c_right))
-    return per_link.max(axis=-1)
-
-
-def certified_deficit(
-    lengths, world, start, goal, x, link_clearance, degree: int,
-    refine_intervals: int, refine_factor: int,
-):
-    """Per-interval certification deficit after subdividing the worst intervals.
+    One pass over the n samples tests every sample's window and records the first
+    ``refine_intervals`` failing windows of each path; a second pass splits those into
+    ``refine_factor`` sub-windows. (Which failing windows are split does not change the
+    verdict: a path with more failing windows than that stays uncertified anyway.)
 
     Args:
       lengths, world, start, goal: the problem's arrays.
       x: free parameters, shape (..., n_free).
-      link_clearance: ``clearance`` of every link at the n equally spaced samples of r,
-        shape (..., n_samples, n_joints).
-      degree: path degree (static).
-      refine_intervals: how many of the worst intervals are subdivided (static).
-      refine_factor: pieces each of those intervals is split into (static).
+      degree, n_samples, refine_intervals, refine_factor: static sizes.
 
     Returns:
-      Array of shape (..., n_samples - 1): <= 0 where the interval is certified free, the
-      clearance deficit (cm, > 0) where it is not.
+      Array of shape (...,), >= 0, zero iff every window is certified free.
     """
-    n_samples = link_clearance.shape[-2]
-    r = np.linspace(0.0, 1.0, n_samples)
     step = 1.0 / (n_samples - 1)
-    derivatives = [
-        path.joint_angles(start, goal, x, path.basis_values(degree, r, order), order)
-        for order in range(degree + 1)
-    ]
-    speed = jnp.minimum(
-        _taylor_speed(derivatives, step)[..., :-1, :],
-        _taylor_speed(derivatives, -step)[..., 1:, :],
-    )
-    sweep = _sweep(lengths, speed, step)
-    deficit = _deficit(sweep, link_clearance[..., :-1, :], link_clearance[..., 1:, :])
-    n_refined = min(refine_intervals, n_samples - 1)
-    if n_refined == 0 or refine_factor < 2:
-        return deficit
+    n_refined = min(refine_intervals, n_samples) if refine_factor > 1 else 0
+    r = np.linspace(0.0, 1.0, n_samples)
+    tails = jnp.asarray(_tail_weights(degree, r, step / 2), x.dtype)
 
-    _, worst = jax.lax.top_k(deficit, n_refined)  # (..., F)
-    gather = lambda a, offset=0: jnp.take_along_axis(a, worst[..., None] + offset, axis=-2)  # noqa: E731
-    # The polynomial's exact Taylor expansion about each interval's left end gives the
-    # postures at the inner sub-points from derivatives already at hand.
-    offsets = step * np.arange(1, refine_factor) / refine_factor
-    theta_inner = sum(
-        gather(derivative)[..., None, :]
-        * jnp.asarray(offsets**order / math.factorial(order), dtype=x.dtype)[:, None]
-        for order, derivative in enumerate(derivatives)
-    )  # (..., F, K - 1, n_joints)
-    c_fine = jnp.concatenate(
-        [
-            gather(link_clearance)[..., None, :],
-            clearance(lengths, world, theta_inner),
-            gather(link_clearance, 1)[..., None, :],
-        ],
-        axis=-2,
-    )  # (..., F, K + 1, n_joints)
-    # Each piece is 1/K of the interval, so the interval's speed bound gives 1/K of its sweep.
-    sweep_fine = gather(sweep)[..., None, :] / refine_factor
-    fine_deficit = _deficit(sweep_fine, c_fine[..., :-1, :], c_fine[..., 1:, :]).max(axis=-1)
-    return jnp.put_along_axis(deficit, worst, fine_deficit, axis=-1, inplace=False)
+    def add_sample(record, sample):
+        theta, velocity = sample.derivatives
+        speed = _speed_bound(start, goal, x, velocity, tails[sample.index])
+        # The shortfall waits one step in the carry before it is recorded: the fusion that
+        # computes it then has one output, and XLA does not repeat the geometry per output.
+        record = _record(record, sample.index - 1)
+        return record._replace(pending=window_shortfall(lengths, world, theta, speed, step / 2)), None
+
+    batch = x.shape[:-1]
+    empty = _FailingWindows(pending=jnp.full(batch, -jnp.inf, x.dtype),
+                            count=jnp.zeros(batch, jnp.int32),
+                            first=jnp.zeros((n_refined,) + batch, jnp.int32),
+                            excess=jnp.zeros(batch, x.dtype))
+    record, _ = path.fold_samples(add_sample, empty, start, goal, x, degree, n_samples,
+                                  max_order=1)
+    record = _record(record, n_samples - 1)
+    if n_refined == 0:
+        return record.excess * step
+    fine = _subdivided_shortfall(lengths, world, start, goal, x, degree, record.first,
+                                 record.count, n_samples, refine_factor)
+    return record.excess * step + fine
+
+
+def _subdivided_shortfall(lengths, world, start, goal, x, degree, windows, n_windows,
+                          n_samples, refine_factor):
+    """Positive shortfall of sample windows split into ``refine_factor`` sub-windows, summed
+    over the sub-windows and times their width.
+
+    Args:
+      windows: sample indices, shape (n_refined, ...), int; only the first ``n_windows``
+        of each path are used.
+      n_windows: shape (...,), int.
+
+    Returns:
+      Array of shape (...,), zero iff every sub-window is certified.
+    """
+    step = 1.0 / (n_samples - 1)
+    radius = step / (2 * refine_factor)
+    r = np.linspace(0.0, 1.0, n_samples)
+    # Sub-window centres tile each sample's window [r_s - step / 2, r_s + step / 2].
+    centres = r[:, None] + step * ((np.arange(refine_factor) + 0.5) / refine_factor - 0.5)
+    # Flat tables, one per basis function, read with one index per path: a gather of single
+    # values fuses, where gathering rows would materialise strided (..., degree - 4) arrays.
+    basis = [[jnp.asarray(column, x.dtype) for column in
+              path.basis_values(degree, centres.ravel(), order).T] for order in (0, 1)]
+    tails = [jnp.asarray(column, x.dtype)
+             for column in _tail_weights(degree, r, radius, spread=step / 2).T]
+    n_refined = windows.shape[0]
+    pieces = (np.repeat(np.arange(n_refined), refine_factor),
+              np.tile(np.arange(refine_factor), n_refined))
+
+    def add_piece(total, piece):
+        slot, offset = piece
+        window = windows[slot]  # (...,)
+        index = window * refine_factor + offset
+        theta, velocity = (
+            path.joint_angle_list(start, goal, x, jnp.stack([c[index] for c in columns], -1),
+                                  order, per_path=True)
+            for order, columns in enumerate(basis))
+        speed = _speed_bound(start, goal, x, velocity, jnp.stack([c[window] for c in tails], -1))
+        shortfall = window_shortfall(lengths, world, theta, speed, radius)
+        return total + jnp.where(slot < n_windows, jnp.maximum(shortfall, 0.0), 0.0), None
+
+    total, _ = jax.lax.scan(add_piece, jnp.zeros(x.shape[:-1], x.dtype), pieces)
+    return total * (step / refine_factor)

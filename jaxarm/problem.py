@@ -63,7 +63,8 @@ class Problem:
       init_low, init_high: range the initial swarm is drawn from, a scalar or shape (n_free,).
       name, description: labels for reports.
       capacities: obstacle slots (circles, polygons, vertices per polygon); default from world.
-      refine_intervals, refine_factor: certified mode's subdivision of the worst intervals.
+      refine_intervals, refine_factor: certified mode splits up to ``refine_intervals`` sample
+        windows that fail its test into ``refine_factor`` sub-windows each.
 
     Raises:
       ValueError: naming the field and value, including a start or goal posture that collides.
@@ -211,7 +212,7 @@ class Evaluation(NamedTuple):
 
 
 def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x) -> Evaluation:
-    """Fitness, violation and travelling distance of paths, sharing one pass over the samples.
+    """Fitness, violation and travelling distance of paths.
 
     Pure and traceable: ``spec`` must be static under jit, ``arrays`` and ``x`` may be traced.
 
@@ -223,25 +224,15 @@ def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x) -> Evaluation:
     Returns:
       ``Evaluation`` of arrays of shape (...,).
     """
-    r = np.linspace(0.0, 1.0, spec.n_samples)
-    step = 1.0 / (spec.n_samples - 1)
-    velocity = path.joint_angle_list(
-        arrays.start, arrays.goal, x, path.basis_values(spec.degree, r, 1), order=1
-    )
-    distance = path.travelling_distance(velocity, path.simpson_weights(spec.n_samples))
-    theta = path.joint_angle_list(arrays.start, arrays.goal, x,
-                                  path.basis_values(spec.degree, r))
+    distance = path.travelling_distance(arrays.start, arrays.goal, x, spec.degree,
+                                        spec.n_samples)
+    geometry = (arrays.lengths, arrays.world, arrays.start, arrays.goal, x, spec.degree,
+                spec.n_samples)
     if spec.collision == "sampled":
-        violation = collision_lib.total_penetration(arrays.lengths, arrays.world, theta) * step
+        violation = collision_lib.sampled_violation(*geometry)
     else:
-        link_clearance, depth = collision_lib.clearance_and_penetration(
-            arrays.lengths, arrays.world, theta
-        )
-        deficit = collision_lib.certified_deficit(
-            arrays.lengths, arrays.world, arrays.start, arrays.goal, x,
-            link_clearance, spec.degree, spec.refine_intervals, spec.refine_factor,
-        )
-        violation = (depth + jnp.maximum(deficit, 0.0).sum(axis=-1)) * step
+        violation = collision_lib.certified_violation(*geometry, spec.refine_intervals,
+                                                      spec.refine_factor)
     fitness = jnp.where(violation > 0, 0.0, 1.0 / distance).astype(x.dtype)
     return Evaluation(fitness=fitness, violation=violation, distance=distance)
 

@@ -40,9 +40,8 @@ class RefineResult(NamedTuple):
 def surrogate(spec, arrays, x, barrier_weight, margin, temperature):
     """The smooth objective: travelling distance plus a softplus clearance barrier; shape (...,)."""
     r = np.linspace(0.0, 1.0, spec.n_samples)
-    velocity = path.joint_angles(arrays.start, arrays.goal, x,
-                                 path.basis_values(spec.degree, r, 1), order=1)
-    distance = path.travelling_distance(velocity, path.simpson_weights(spec.n_samples))
+    distance = path.travelling_distance(arrays.start, arrays.goal, x, spec.degree,
+                                        spec.n_samples)
     theta = path.joint_angles(arrays.start, arrays.goal, x, path.basis_values(spec.degree, r))
     clearance = collision_lib.clearance(arrays.lengths, arrays.world, theta)  # (..., S, J)
     barrier = temperature * jax.nn.softplus((margin - clearance) / temperature)

@@ -359,6 +359,17 @@ def separation_xy(sx, sy, ex, ey, world: WorldArrays):
     )
 
 
+def separation_bound_xy(sx, sy, ex, ey, world: WorldArrays):
+    """A cheap lower bound on ``separation_xy``, exact wherever it is <= 0; shape (n_slots, ...).
+
+    Circles give their exact separation and polygons their separating-axis gap, which is minus
+    the penetration depth when overlapping and at most the distance when apart (for a box at
+    least 1/sqrt(2) of it). The certified check only needs a lower bound on the distance.
+    """
+    return jnp.concatenate([circle_separation_xy(sx, sy, ex, ey, world),
+                            polygon_overlap_gap_xy(sx, sy, ex, ey, world)], axis=0)
+
+
 def penetration(start, end, world: WorldArrays):
     """Penetration depth of segments into every obstacle slot, >= 0; shape (..., n_slots).
 
@@ -370,6 +381,4 @@ def penetration(start, end, world: WorldArrays):
 def penetration_xy(sx, sy, ex, ey, world: WorldArrays):
     """Like ``penetration`` for coordinates given separately, each of shape (...); returns
     shape (n_slots, ...)."""
-    circles = -circle_separation_xy(sx, sy, ex, ey, world)
-    polygons = -polygon_overlap_gap_xy(sx, sy, ex, ey, world)
-    return jnp.maximum(jnp.concatenate([circles, polygons], axis=0), 0.0)
+    return jnp.maximum(-separation_bound_xy(sx, sy, ex, ey, world), 0.0)
