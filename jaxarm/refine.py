@@ -24,7 +24,7 @@ import optax
 
 from jaxarm import collision as collision_lib
 from jaxarm import path
-from jaxarm.problem import Problem, _as_params, evaluate
+from jaxarm.problem import Problem, _as_params, vmapped_evaluate
 
 
 class RefineResult(NamedTuple):
@@ -51,7 +51,7 @@ def surrogate(spec, arrays, x, barrier_weight, margin, temperature):
 def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, temperature):
     objective = lambda z: surrogate(spec, arrays, z, barrier_weight, margin, temperature)  # noqa: E731
     gradient = jax.grad(objective)
-    start = evaluate(spec, arrays, x)
+    start = vmapped_evaluate(spec)(arrays, x)
     feasible = start.violation == 0
 
     def body(carry, _):
@@ -60,7 +60,7 @@ def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, tem
         grads = jnp.where(jnp.isfinite(grads), grads, 0.0)
         updates, state = optimizer.update(grads, state, params)
         params = optax.apply_updates(params, updates)
-        candidate = evaluate(spec, arrays, params)
+        candidate = vmapped_evaluate(spec)(arrays, params)
         accept = (candidate.violation == 0) & (candidate.fitness >= best_fitness) & feasible
         n_accepted = n_accepted + (accept & (candidate.fitness > best_fitness)).astype(jnp.int32)
         best_x = jnp.where(accept, params, best_x)

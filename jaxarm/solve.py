@@ -20,7 +20,7 @@ import numpy as np
 
 from jaxarm import pso
 from jaxarm._validate import positive_int
-from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, collides, evaluate
+from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, collides, vmapped_evaluate
 
 
 class Result(NamedTuple):
@@ -79,7 +79,7 @@ class RestartOutcome(NamedTuple):
 def _one_restart(key, spec, arrays, numbers, structure, low, high, init_particles,
                  n_particles, n_iters, constraint):
     def score_fn(x):
-        evaluation = evaluate(spec, arrays, x)
+        evaluation = vmapped_evaluate(spec)(arrays, x)
         return pso.constraint_score(constraint, evaluation.fitness, evaluation.violation)
 
     state, info = pso.init(jax.random.fold_in(key, 0), score_fn, numbers, structure, low, high,
@@ -98,7 +98,7 @@ def _one_restart(key, spec, arrays, numbers, structure, low, high, init_particle
     (state, escape_x), history = jax.lax.scan(body, (state, escape_x),
                                               jnp.arange(1, n_iters + 1))
     best_x = state.best_position[state.global_index]
-    final = evaluate(spec, arrays, best_x)
+    final = vmapped_evaluate(spec)(arrays, best_x)
     return RestartOutcome(
         best_x=best_x,
         best_fitness=final.fitness,
