@@ -21,6 +21,16 @@ def _positive(text: str) -> int:
     return value
 
 
+def _degrees(text: str) -> tuple[int, ...]:
+    try:
+        degrees = tuple(int(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be comma-separated integers, got {text!r}")
+    if not degrees or min(degrees) < 6:
+        raise argparse.ArgumentTypeError(f"degrees must be >= 6, got {text!r}")
+    return degrees
+
+
 def _add_search_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", help="a shipped scenario name or a path to a .toml file")
     parser.add_argument("--constraint", default="death", choices=["death", "feasibility"],
@@ -79,6 +89,8 @@ def build_parser() -> argparse.ArgumentParser:
                                            "(default: all shipped)")
     reproduce.add_argument("--suite-seeds", type=_positive,
                            help="seeds per suite scenario (200; 50 with --quick)")
+    reproduce.add_argument("--degrees", type=_degrees, default=(6, 7, 8),
+                           help="path degrees compared beyond the paper (6,7,8)")
     return parser
 
 
@@ -157,7 +169,7 @@ def _reproduce(args) -> None:
 
     suite = [name.strip() for name in args.suite.split(",")] if args.suite else None
     reproduce_paper(args.out, quick=args.quick, n_seeds=args.seeds, suite=suite,
-                    suite_seeds=args.suite_seeds)
+                    suite_seeds=args.suite_seeds, degrees=args.degrees)
 
 
 COMMANDS = {"scenarios": _scenarios, "solve": _solve, "study": _study,

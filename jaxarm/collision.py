@@ -1,7 +1,7 @@
 """Collision checks of a whole motion: the paper's sampled check and a certified continuous one.
 
-Both walk along the path one sample of r at a time (``path.fold_samples``), so the working set
-stays a few arrays of the batch shape.
+Both are folds along the path, one sample of r at a time (``path.run_fold``), so the working
+set stays a few arrays of the batch shape.
 
 ``sampled`` (the paper's Fig. 8): the links are checked against every obstacle at the ``n``
 equally spaced samples of r. A thin obstacle can slip between two samples.
@@ -113,22 +113,21 @@ def posture_clearance_bound(lengths, world, theta: list) -> list:
             for link in link_endpoints(lengths, theta)]
 
 
-def sampled_violation(lengths, world, start, goal, x, degree: int, n_samples: int):
-    """The paper's check: penetration summed over the samples, times their spacing.
+def sampled_fold(lengths, world, x, n_samples: int) -> path.SampleFold:
+    """The paper's check as a fold: penetration summed over the samples, times their spacing;
+    shape (...,), >= 0, zero iff no sample collides.
 
     Args:
-      lengths, world, start, goal: the problem's arrays.
-      x: free parameters, shape (..., n_free).
-
-    Returns:
-      Array of shape (...,), >= 0, zero iff no sample collides.
+      lengths, world: the problem's arrays.
+      x: free parameters, shape (..., n_free) (for the batch shape and dtype).
     """
-    def add_sample(total, sample):
-        return total + posture_penetration(lengths, world, sample.derivatives[0]), None
-
-    total, _ = path.fold_samples(add_sample, jnp.zeros(x.shape[:-1], x.dtype), start, goal, x,
-                                 degree, n_samples)
-    return total / (n_samples - 1)
+    return path.SampleFold(
+        init=jnp.zeros(x.shape[:-1], x.dtype),
+        step=lambda total, sample: total + posture_penetration(lengths, world,
+                                                               sample.derivatives[0]),
+        finish=lambda total: total / (n_samples - 1),
+        max_order=0,
+    )
 
 
 def reach_matrix(lengths):
@@ -228,12 +227,13 @@ def _record(record: _FailingWindows, index) -> _FailingWindows:
     )
 
 
-def certified_violation(lengths, world, start, goal, x, degree: int, n_samples: int,
-                        refine_intervals: int, refine_factor: int):
-    """Violation under the certified continuous check (see the module docstring).
+def certified_fold(lengths, world, start, goal, x, degree: int, n_samples: int,
+                   refine_intervals: int, refine_factor: int) -> path.SampleFold:
+    """The certified continuous check as a fold (see the module docstring): the violation,
+    shape (...,), >= 0, zero iff every window is certified free.
 
-    One pass over the n samples tests every sample's window and records the first
-    ``refine_intervals`` failing windows of each path; a second pass splits those into
+    Along the samples it tests every sample's window and records the first
+    ``refine_intervals`` failing windows of each path; ``finish`` splits those into
     ``refine_factor`` sub-windows. (Which failing windows are split does not change the
     verdict: a path with more failing windows than that stays uncertified anyway.)
 
@@ -241,14 +241,11 @@ def certified_violation(lengths, world, start, goal, x, degree: int, n_samples: 
       lengths, world, start, goal: the problem's arrays.
       x: free parameters, shape (..., n_free).
       degree, n_samples, refine_intervals, refine_factor: static sizes.
-
-    Returns:
-      Array of shape (...,), >= 0, zero iff every window is certified free.
     """
     step = 1.0 / (n_samples - 1)
     n_refined = min(refine_intervals, n_samples) if refine_factor > 1 else 0
-    r = np.linspace(0.0, 1.0, n_samples)
-    tails = jnp.asarray(_tail_weights(degree, r, step / 2), x.dtype)
+    tails = jnp.asarray(_tail_weights(degree, np.linspace(0.0, 1.0, n_samples), step / 2),
+                        x.dtype)
 
     def add_sample(record, sample):
         theta, velocity = sample.derivatives
@@ -256,21 +253,22 @@ def certified_violation(lengths, world, start, goal, x, degree: int, n_samples: 
         # The shortfall waits one step in the carry before it is recorded: the fusion that
         # computes it then has one output, and XLA does not repeat the geometry per output.
         record = _record(record, sample.index - 1)
-        return record._replace(pending=window_shortfall(lengths, world, theta, speed, step / 2)), None
+        return record._replace(pending=window_shortfall(lengths, world, theta, speed, step / 2))
+
+    def finish(record):
+        record = _record(record, n_samples - 1)
+        if n_refined == 0:
+            return record.excess * step
+        return record.excess * step + _subdivided_shortfall(
+            lengths, world, start, goal, x, degree, record.first, record.count, n_samples,
+            refine_factor)
 
     batch = x.shape[:-1]
     empty = _FailingWindows(pending=jnp.full(batch, -jnp.inf, x.dtype),
                             count=jnp.zeros(batch, jnp.int32),
                             first=jnp.zeros((n_refined,) + batch, jnp.int32),
                             excess=jnp.zeros(batch, x.dtype))
-    record, _ = path.fold_samples(add_sample, empty, start, goal, x, degree, n_samples,
-                                  max_order=1)
-    record = _record(record, n_samples - 1)
-    if n_refined == 0:
-        return record.excess * step
-    fine = _subdivided_shortfall(lengths, world, start, goal, x, degree, record.first,
-                                 record.count, n_samples, refine_factor)
-    return record.excess * step + fine
+    return path.SampleFold(init=empty, step=add_sample, finish=finish, max_order=1)
 
 
 def _subdivided_shortfall(lengths, world, start, goal, x, degree, windows, n_windows,

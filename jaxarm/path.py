@@ -18,7 +18,7 @@ so degree 6 gives the paper's ``[a61 a62 a63]``.
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from typing import Any, Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -186,44 +186,53 @@ def simpson_weights(n_samples: int) -> np.ndarray:
 
 
 class Sample(NamedTuple):
-    """One of the n equally spaced times of r, as ``fold_samples`` hands it to its function."""
+    """One of the n equally spaced times of r, as ``run_fold`` hands it to a fold's step."""
 
     index: jax.Array  # shape=(), int32: s in 0 .. n_samples - 1, at r = s / (n_samples - 1)
     weight: jax.Array  # shape=(), the Simpson weight of the sample
     derivatives: tuple  # derivatives[order][joint]: d^order theta / dr^order, shape (...,)
 
 
-def fold_samples(fn: Callable, init, start, goal, x, degree: int, n_samples: int,
-                 max_order: int = 0):
-    """``lax.scan`` of ``fn(carry, sample) -> (carry, y)`` over the samples of r, in order.
+class SampleFold(NamedTuple):
+    """A per-path quantity accumulated along the samples of r: ``finish`` of the carry after
+    ``carry = step(carry, sample)`` for every sample in order, starting from ``init``."""
 
-    One sample at a time keeps the working set to a few arrays of the batch shape, which stay
+    init: Any  # pytree of arrays: the carry before the first sample
+    step: Callable  # (carry, Sample) -> carry
+    finish: Callable  # carry -> result
+    max_order: int  # highest derivative order ``step`` reads
+
+
+def run_fold(fold: SampleFold, start, goal, x, degree: int, n_samples: int):
+    """Run a fold as one ``lax.scan`` over the samples of r.
+
+    One sample at a time keeps the working set to a few arrays of the batch size, which stay
     in cache; materialising (batch, n_samples) intermediates instead makes the kernel
     memory-bound (about 3x slower at a batch of 1e5 on CPU).
 
     Args:
-      fn: the per-sample step; ``sample`` is a ``Sample`` with derivative orders 0..max_order.
-      init: the initial carry (a pytree).
+      fold: the ``SampleFold``.
       start, goal: joint angles, shape (n_joints,).
       x: free parameters, shape (..., n_free).
-      degree, n_samples, max_order: static sizes.
+      degree, n_samples: static sizes.
 
     Returns:
-      ``(carry, ys)``: the final carry and ``fn``'s outputs stacked on a leading axis of
-      length n_samples.
+      ``fold.finish`` of the last carry.
     """
     r = np.linspace(0.0, 1.0, n_samples)
-    basis = np.stack([basis_values(degree, r, order) for order in range(max_order + 1)], axis=1)
+    basis = np.stack([basis_values(degree, r, order) for order in range(fold.max_order + 1)],
+                     axis=1)
     constants = (np.arange(n_samples, dtype=np.int32),
                  jnp.asarray(simpson_weights(n_samples), x.dtype), jnp.asarray(basis, x.dtype))
 
     def body(carry, constants_row):
         index, weight, basis_row = constants_row  # basis_row: (max_order + 1, degree - 4)
         derivatives = tuple(joint_angle_list(start, goal, x, basis_row[order], order)
-                            for order in range(max_order + 1))
-        return fn(carry, Sample(index, weight, derivatives))
+                            for order in range(fold.max_order + 1))
+        return fold.step(carry, Sample(index, weight, derivatives)), None
 
-    return jax.lax.scan(body, init, constants)
+    carry, _ = jax.lax.scan(body, fold.init, constants)
+    return fold.finish(carry)
 
 
 def arc_length_rate(velocity: list):
@@ -238,8 +247,23 @@ def arc_length_rate(velocity: list):
     return sum(jnp.sqrt(1.0 + v * v) for v in velocity)
 
 
+def distance_fold(x) -> SampleFold:
+    """Joint angle travelling distance summed over joints (paper eq. 5 by Simpson's rule),
+    as a fold: ``sum_k integral_0^1 sqrt(1 + theta_k'(r)^2) dr``, shape (...,).
+
+    Args:
+      x: free parameters, shape (..., n_free) (for the batch shape and dtype).
+    """
+    return SampleFold(
+        init=jnp.zeros(x.shape[:-1], x.dtype),
+        step=lambda total, sample: total + sample.weight * arc_length_rate(sample.derivatives[1]),
+        finish=lambda total: total,
+        max_order=1,
+    )
+
+
 def travelling_distance(start, goal, x, degree: int, n_samples: int):
-    """Joint angle travelling distance summed over joints (paper eq. 5 by Simpson's rule).
+    """``distance_fold`` on its own.
 
     Args:
       start, goal: joint angles, shape (n_joints,).
@@ -247,11 +271,6 @@ def travelling_distance(start, goal, x, degree: int, n_samples: int):
       degree, n_samples: the path's degree and the (odd) number of Simpson points.
 
     Returns:
-      Array of shape (...,): ``sum_k integral_0^1 sqrt(1 + theta_k'(r)^2) dr``.
+      Array of shape (...,).
     """
-    def add_sample(total, sample):
-        return total + sample.weight * arc_length_rate(sample.derivatives[1]), None
-
-    total, _ = fold_samples(add_sample, jnp.zeros(x.shape[:-1], x.dtype), start, goal, x,
-                            degree, n_samples, max_order=1)
-    return total
+    return run_fold(distance_fold(x), start, goal, x, degree, n_samples)

@@ -38,14 +38,23 @@ class RefineResult(NamedTuple):
 
 
 def surrogate(spec, arrays, x, barrier_weight, margin, temperature):
-    """The smooth objective: travelling distance plus a softplus clearance barrier; shape (...,)."""
-    r = np.linspace(0.0, 1.0, spec.n_samples)
+    """The smooth objective: travelling distance plus a softplus clearance barrier; shape (...,).
+
+    The barrier reads each link's clearance bound (``collision.posture_clearance_bound``: exact
+    for circles, the separating-axis gap for polygons) at every sample.
+    """
+    def add_barrier(total, sample):
+        bounds = collision_lib.posture_clearance_bound(arrays.lengths, arrays.world,
+                                                       sample.derivatives[0])
+        return total + sum(temperature * jax.nn.softplus((margin - c) / temperature)
+                           for c in bounds)
+
+    barrier = path.SampleFold(init=jnp.zeros(x.shape[:-1], x.dtype), step=add_barrier,
+                              finish=lambda total: total / spec.n_samples, max_order=0)
     distance = path.travelling_distance(arrays.start, arrays.goal, x, spec.degree,
                                         spec.n_samples)
-    theta = path.joint_angles(arrays.start, arrays.goal, x, path.basis_values(spec.degree, r))
-    clearance = collision_lib.clearance(arrays.lengths, arrays.world, theta)  # (..., S, J)
-    barrier = temperature * jax.nn.softplus((margin - clearance) / temperature)
-    return distance + barrier_weight * barrier.sum(axis=(-2, -1)) / spec.n_samples
+    return distance + barrier_weight * path.run_fold(barrier, arrays.start, arrays.goal, x,
+                                                     spec.degree, spec.n_samples)
 
 
 def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, temperature):

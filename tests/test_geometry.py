@@ -4,12 +4,14 @@ Obstacles are open sets (grazing contact is not a collision), which is shapely's
 ``relate_pattern(segment, obstacle, "T********")``: the interiors intersect.
 """
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 import shapely
 
 import jaxarm
+from jaxarm import collision, path
 from jaxarm import world as world_lib
 
 CAPACITIES = (4, 8, 8)
@@ -70,6 +72,13 @@ def test_segment_separation_agrees_with_shapely_on_random_worlds(rng):
         np.testing.assert_array_equal((separation < 0)[clear], hit[clear])
         apart = clear & ~hit
         np.testing.assert_allclose(separation[apart], distance[apart], rtol=1e-4, atol=1e-3)
+        # The certified check's cheap bound: never above the distance, and zero-crossing where
+        # the exact separation does (its negative part is the same penetration depth).
+        bound = np.asarray(world_lib.separation_bound_xy(
+            *(jnp.asarray(a) for a in (start[:, 0], start[:, 1], end[:, 0], end[:, 1])),
+            packed)).min(axis=0)
+        assert np.all(bound[apart] <= distance[apart] + 1e-3)
+        np.testing.assert_array_equal((bound < 0)[clear], hit[clear])
         checked += clear.sum()
     assert checked > 10_000
 
@@ -166,3 +175,36 @@ def test_certified_is_sound_and_not_too_conservative_against_a_dense_check(rng):
     assert dense_free > 60
     # Not so conservative that it rejects most free motions.
     assert certified_of_dense_free / dense_free > 0.6, (certified_of_dense_free, dense_free)
+
+
+@pytest.mark.parametrize("degree", [6, 8])
+def test_window_speed_bounds_hold_on_a_dense_grid(rng, degree):
+    """The certified check's bound on |theta_j'| over a window (centre velocity plus Taylor
+    tail weights) is never below the true speed, for sample windows and for sub-windows."""
+    n_samples, refine_factor = 21, 4
+    step = 1.0 / (n_samples - 1)
+    start, goal = rng.uniform(-3, 3, 3), rng.uniform(-3, 3, 3)
+    x = rng.uniform(-200, 200, (50, 3 * (degree - 5)))
+    samples = np.linspace(0.0, 1.0, n_samples)
+    sub_radius = step / (2 * refine_factor)
+    with jax.enable_x64(True):
+        window_tails = collision._tail_weights(degree, samples, step / 2)
+        sub_tails = collision._tail_weights(degree, samples, sub_radius, spread=step / 2)
+        worst_ratio = 0.0
+        for s in range(n_samples):
+            sub_centres = samples[s] + step * ((np.arange(refine_factor) + 0.5) / refine_factor
+                                               - 0.5)
+            for centre, radius, tail in [(samples[s], step / 2, window_tails[s])] + [
+                    (c, sub_radius, sub_tails[s]) for c in sub_centres]:
+                velocity = path.joint_angle_list(start, goal, jnp.asarray(x),
+                                                 path.basis_values(degree, [centre], 1), order=1)
+                bound = collision._speed_bound(start, goal, jnp.asarray(x),
+                                               [v[:, 0] for v in velocity], jnp.asarray(tail))
+                dense = np.linspace(centre - radius, centre + radius, 41)
+                true = path.joint_angles(start, goal, jnp.asarray(x),
+                                         path.basis_values(degree, dense, 1), order=1)
+                true = np.abs(np.asarray(true)).max(axis=1)  # (paths, joints)
+                bound = np.stack([np.asarray(b) for b in bound], axis=-1)
+                assert np.all(true <= bound * (1 + 1e-12)), (s, centre)
+                worst_ratio = max(worst_ratio, float((true / bound).max()))
+    assert worst_ratio > 0.9  # and not uselessly loose

@@ -59,7 +59,8 @@ def test_batched_equals_looped_for_any_leading_shape(case2, rng):
 
 @pytest.mark.parametrize("mode", ["sampled", "certified"])
 def test_jit_equals_no_jit(case2, rng, mode):
-    problem = case2.replace(collision=mode)
+    # Eager scans run step by step in Python: few samples and sub-windows.
+    problem = case2.replace(collision=mode, n_samples=21, refine_intervals=4, refine_factor=3)
     x = jnp.asarray(rng.uniform(-200, 200, (64, 3)), dtype=jnp.float32)
     spec, arrays = problem.spec, problem.arrays
     with jax.disable_jit():
@@ -69,14 +70,16 @@ def test_jit_equals_no_jit(case2, rng, mode):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
 
 
+_jitted_evaluate = jax.jit(jaxarm.problem.evaluate, static_argnums=0)
+
+
 @given(st.lists(st.floats(-200, 200), min_size=3, max_size=3))
 def test_float32_agrees_with_float64(x):
     problem = jaxarm.load_scenario("paper-case-2")
-    low = np.asarray(jaxarm.problem.evaluate(problem.spec, problem.arrays,
-                                             jnp.asarray(x, jnp.float32)))
+    low = np.asarray(_jitted_evaluate(problem.spec, problem.arrays, jnp.asarray(x, jnp.float32)))
     with jax.enable_x64(True):
-        high = np.asarray(jaxarm.problem.evaluate(problem.spec, problem.arrays,
-                                                  jnp.asarray(x, jnp.float64)))
+        high = np.asarray(_jitted_evaluate(problem.spec, problem.arrays,
+                                           jnp.asarray(x, jnp.float64)))
     np.testing.assert_allclose(low[2], high[2], rtol=1e-5)  # distance
     # Collision verdicts can only differ within rounding of the boundary.
     if (low[1] > 0) != (high[1] > 0):
@@ -144,3 +147,22 @@ def test_bad_parameters_are_rejected(case2):
         jaxarm.fitness(case2, np.zeros(4))
     with pytest.raises(ValueError, match=r"x must be finite"):
         jaxarm.fitness(case2, [0.0, float("nan"), 1.0])
+
+
+def test_vmapped_evaluate_folds_the_mapped_axis_and_agrees(case2, rng):
+    x = jnp.asarray(rng.uniform(-200, 200, (6, 5, 3)), jnp.float32)
+    spec, arrays = case2.spec, case2.arrays
+    direct = jaxarm.problem.evaluate(spec, arrays, x)
+    evaluate_spec = jaxarm.problem.vmapped_evaluate(spec)
+    mapped = jax.jit(jax.vmap(evaluate_spec, in_axes=(None, 0)))(arrays, x)
+    for a, b in zip(direct, mapped):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    # Mapping over problems with the same spec (only data differs) still works.
+    smaller = case2.replace(world=jaxarm.World(circles=[(40.0, 4.5, 5.0)]))
+    both = jax.tree.map(lambda a, b: np.stack([a, b]), case2.arrays, smaller.arrays)
+    per_problem = jax.vmap(evaluate_spec)(both, x[:2])
+    np.testing.assert_array_equal(np.asarray(per_problem.fitness[0]),
+                                  np.asarray(direct.fitness[0]))
+    np.testing.assert_array_equal(
+        np.asarray(per_problem.fitness[1]),
+        np.asarray(jaxarm.problem.evaluate(spec, smaller.arrays, x[1]).fitness))

@@ -154,7 +154,8 @@ def test_plots_produce_non_empty_pngs(tmp_path, case2):
 
 def test_cli_reproduce_paper_writes_a_report_with_every_table(capsys, tmp_path):
     code, out, _ = run_cli(capsys, "reproduce-paper", "--out", str(tmp_path), "--seeds", "8",
-                           "--suite", "paper-case-2,open-space", "--suite-seeds", "4")
+                           "--suite", "paper-case-2,open-space", "--suite-seeds", "4",
+                           "--degrees", "6")
     assert code == 0 and "report written" in out
     report = (tmp_path / "report.md").read_text()
     for heading in ("Table 2", "Escape probability", "Table 3", "Tables 4 and 5", "Table 6",
