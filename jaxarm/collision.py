@@ -217,7 +217,7 @@ class _FailingWindows(NamedTuple):
 
 def _record(record: _FailingWindows, index) -> _FailingWindows:
     """Record ``record.pending`` as the shortfall of the window around sample ``index``."""
-    failing = record.pending > 0
+    failing = ~(record.pending <= 0)  # NaN (from non-finite angles) fails too
     slot = jnp.arange(record.first.shape[0]).reshape((-1,) + (1,) * record.count.ndim)
     return record._replace(
         count=record.count + failing,

@@ -239,7 +239,7 @@ def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x) -> Evaluation:
     distance, violation = (path.run_fold(fold, arrays.start, arrays.goal, rows, spec.degree,
                                          spec.n_samples)
                            for fold in (path.distance_fold(rows), check))
-    fitness = jnp.where(violation > 0, 0.0, 1.0 / distance).astype(x.dtype)
+    fitness = jnp.where(violation == 0, 1.0 / distance, 0.0).astype(x.dtype)  # NaN: 0
     return jax.tree.map(lambda a: a.reshape(x.shape[:-1]),
                         Evaluation(fitness=fitness, violation=violation, distance=distance))
 

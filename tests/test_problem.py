@@ -166,3 +166,15 @@ def test_vmapped_evaluate_folds_the_mapped_axis_and_agrees(case2, rng):
     np.testing.assert_array_equal(
         np.asarray(per_problem.fitness[1]),
         np.asarray(jaxarm.problem.evaluate(spec, smaller.arrays, x[1]).fitness))
+
+
+@pytest.mark.parametrize("mode", ["sampled", "certified"])
+def test_overflowing_paths_are_never_feasible(case1, mode):
+    # The public functions reject non-finite x; a swarm without a velocity clamp can still
+    # drive positions to overflow inside a compiled search.
+    problem = case1.replace(collision=mode)
+    x = jnp.array([[jnp.inf, 0, 0], [1e30, 0, 0], [jnp.nan, 0, 0], [3e38, 3e38, -3e38]],
+                  jnp.float32)
+    evaluation = jaxarm.problem.evaluate(problem.spec, problem.arrays, x)
+    assert np.all(np.asarray(evaluation.fitness) == 0)
+    assert not np.any(np.asarray(evaluation.violation) == 0)
