@@ -21,9 +21,9 @@ bound on link k's distance to the nearest obstacle at r_s (``world.separation_bo
 for circles, the separating-axis gap for polygons), then ``c_k >= delta_k`` for every link proves
 that no point of the arm enters an obstacle's interior during the window (obstacles are open
 sets, see ``world``). Each window's *shortfall* is ``max_k (delta_k - c_k)``; it is <= 0 iff the
-window is certified. The ``refine_intervals`` windows with the largest shortfall are split into
+window is certified. The first ``refine_intervals`` failing windows of a path are split into
 ``refine_factor`` sub-windows, each tested the same way about its own centre with its own
-radius. A motion with a window left uncertified is reported as colliding (conservative). The
+radius (the speed bound's tail taken over the whole window). A motion with a window left uncertified is reported as colliding (conservative). The
 guarantee holds up to floating-point rounding of the geometry.
 
 Each test reads one posture and the path's derivatives at one time, so a window's shortfall is
@@ -72,19 +72,6 @@ def _nearest(separation):
     if separation.shape[0] == 0:
         return jnp.full(separation.shape[1:], jnp.inf, separation.dtype)
     return separation.min(axis=0)
-
-
-def clearance(lengths, world, theta):
-    """Signed distance of every link to the nearest obstacle (negative: penetration depth).
-
-    Args:
-      theta: joint angles, shape (..., n_joints).
-
-    Returns:
-      Array of shape (..., n_joints).
-    """
-    links = link_endpoints(lengths, theta)
-    return jnp.stack([_nearest(world_lib.separation_xy(*link, world)) for link in links], axis=-1)
 
 
 def posture_penetration(lengths, world, theta: list):

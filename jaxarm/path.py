@@ -14,6 +14,9 @@ coefficients themselves can reach hundreds while the angles stay small.
 
 Free parameters are ordered by power, then joint: ``x = [a6_1 .. a6_J, a7_1 .. a7_J, ...]``,
 so degree 6 gives the paper's ``[a61 a62 a63]``.
+
+Per-path quantities along the samples of r (travelling distance here, the collision checks in
+``collision``) are ``SampleFold``s that ``run_fold`` walks one sample at a time.
 """
 
 from __future__ import annotations

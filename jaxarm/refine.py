@@ -5,8 +5,8 @@ sample that ridge coarsely. ``refine`` descends a smooth surrogate,
 
     travelling distance + weight * sum over samples and links of tau * softplus((margin - c) / tau)
 
-where c is the signed clearance of a link at a sample (negative inside an obstacle), with any
-optax optimizer. Steps are only *accepted* into the returned path when the candidate is
+where c is a lower bound on the signed clearance of a link at a sample (negative inside an
+obstacle; exact for circles, the separating-axis gap for polygons), with any optax optimizer. Steps are only *accepted* into the returned path when the candidate is
 collision-free in the problem's own collision mode (certified if the problem says so) and at
 least as fit as the best so far, so the result is never less fit than the input and never
 collides. The optimizer itself moves freely on the surrogate; the barrier pulls it back out
