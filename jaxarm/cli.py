@@ -82,7 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
     reproduce.add_argument("--out", type=pathlib.Path, default=pathlib.Path("results"),
                            help="output folder (results)")
     reproduce.add_argument("--quick", action="store_true",
-                           help="smaller studies (a couple of minutes on 2 cores)")
+                           help="smaller studies (a few minutes on 2 cores)")
     reproduce.add_argument("--seeds", type=_positive,
                            help="seeds of the case-1 study (500; 100 with --quick)")
     reproduce.add_argument("--suite", help="comma-separated scenarios for the suite study "
