@@ -10,8 +10,10 @@ Quick start::
 from jaxarm.arm import Arm, inverse_kinematics, joint_positions
 from jaxarm.problem import (
     COLLISION_MODES,
+    Certificate,
     Evaluation,
     Problem,
+    certify,
     coefficients,
     collides,
     fitness,
@@ -32,6 +34,7 @@ __all__ = [
     "Arm",
     "COLLISION_MODES",
     "CONSTRAINTS",
+    "Certificate",
     "Evaluation",
     "PRESETS",
     "PSOConfig",
@@ -41,6 +44,7 @@ __all__ = [
     "ScenarioError",
     "World",
     "available_scenarios",
+    "certify",
     "coefficients",
     "collides",
     "fitness",

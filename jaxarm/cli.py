@@ -39,7 +39,11 @@ def _add_search_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--iters", type=_positive, default=100, help="PSO iterations (100)")
     parser.add_argument("--seed", type=int, default=0, help="base seed (0)")
     parser.add_argument("--collision", choices=["sampled", "certified"],
-                        help="collision check (default: the scenario's)")
+                        help="collision check (default: the scenario's, else certified; "
+                             "sampled is the paper's check at the samples only)")
+    parser.add_argument("--margin", type=float,
+                        help="clearance in cm every link keeps from obstacles (default: the "
+                             "scenario's, else 0)")
     parser.add_argument("--degree", type=int, help="polynomial degree (default: the scenario's)")
 
 
@@ -102,6 +106,8 @@ def _load(args):
         overrides["collision"] = args.collision
     if args.degree is not None:
         overrides["degree"] = args.degree
+    if args.margin is not None:
+        overrides["margin"] = args.margin
     return load_scenario(args.scenario, **overrides)
 
 

@@ -19,10 +19,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm import certified as certified_lib
 from jaxarm import collision as collision_lib
 from jaxarm import path
 from jaxarm._validate import finite_scalar, finite_vector, positive_int
-from jaxarm.arm import Arm
+from jaxarm import world as world_lib
+from jaxarm.arm import Arm, link_endpoints
 from jaxarm.world import World, WorldArrays
 
 COLLISION_MODES = ("sampled", "certified")
@@ -36,8 +38,8 @@ class ProblemSpec(NamedTuple):
     n_samples: int
     collision: str
     capacities: tuple[int, int, int]
-    refine_intervals: int
-    refine_factor: int
+    with_margin: bool  # margin > 0: the sampled check needs exact distances
+    certify_budget: int
 
 
 class ProblemArrays(NamedTuple):
@@ -47,6 +49,8 @@ class ProblemArrays(NamedTuple):
     start: np.ndarray  # shape=(n_joints,), rad
     goal: np.ndarray  # shape=(n_joints,), rad
     world: WorldArrays
+    margin: np.ndarray  # shape=(), cm
+    certify_tol: np.ndarray  # shape=(), cm
 
 
 @dataclasses.dataclass(frozen=True)
@@ -59,12 +63,16 @@ class Problem:
       world: the obstacles.
       degree: polynomial degree d >= 6 (d - 5 free coefficients per joint).
       n_samples: odd number of points of r in [0, 1] for Simpson's rule and the sampled check.
-      collision: ``"sampled"`` (paper) or ``"certified"`` (continuous guarantee).
+      collision: ``"certified"`` (default: every r in [0, 1] proved free, see
+        ``jaxarm.certified``) or ``"sampled"`` (the paper's check at the n samples only).
       init_low, init_high: range the initial swarm is drawn from, a scalar or shape (n_free,).
       name, description: labels for reports.
       capacities: obstacle slots (circles, polygons, vertices per polygon); default from world.
-      refine_intervals, refine_factor: certified mode splits up to ``refine_intervals`` sample
-        windows that fail its test into ``refine_factor`` sub-windows each.
+      margin: clearance (cm) every link must keep from every obstacle; 0 allows grazing.
+      certify_tol: the certified check's tolerance (cm): every motion whose clearance exceeds
+        the margin by at least this much is certified free.
+      certify_budget: most pieces the certified check may test per path before it gives up
+        (the path then counts as colliding and ``certify`` reports it exhausted).
 
     Raises:
       ValueError: naming the field and value, including a start or goal posture that collides.
@@ -82,14 +90,15 @@ class Problem:
     world: World = World()
     degree: int = 6
     n_samples: int = 101
-    collision: str = "sampled"
+    collision: str = "certified"
     init_low: float | tuple[float, ...] = -100.0
     init_high: float | tuple[float, ...] = 100.0
     name: str = "custom"
     description: str = ""
     capacities: tuple[int, int, int] | None = None
-    refine_intervals: int = 16
-    refine_factor: int = 8
+    margin: float = 0.0
+    certify_tol: float = 0.01
+    certify_budget: int = 512
 
     def __post_init__(self):
         if not isinstance(self.arm, Arm):
@@ -107,8 +116,14 @@ class Problem:
             raise ValueError(f"n_samples must be odd for Simpson's rule, got {n_samples}")
         if self.collision not in COLLISION_MODES:
             raise ValueError(f"collision must be one of {COLLISION_MODES}, got {self.collision!r}")
-        positive_int("refine_intervals", self.refine_intervals, minimum=0)
-        positive_int("refine_factor", self.refine_factor, minimum=1)
+        set_field("margin", finite_scalar("margin", self.margin))
+        if self.margin < 0:
+            raise ValueError(f"margin must be >= 0 (cm), got {self.margin!r}")
+        set_field("certify_tol", finite_scalar("certify_tol", self.certify_tol))
+        if self.certify_tol <= 0:
+            raise ValueError(f"certify_tol must be > 0 (cm), got {self.certify_tol!r}")
+        set_field("certify_budget", positive_int("certify_budget", self.certify_budget,
+                                                 minimum=1))
         low, high = (self._bound(name) for name in ("init_low", "init_high"))
         set_field("init_low", low)
         set_field("init_high", high)
@@ -139,6 +154,18 @@ class Problem:
                 f"{which} posture {list(getattr(self, which))} collides: link {link + 1} "
                 f"overlaps {name} by {depth[link, slot]:.4g} cm"
             )
+        if self.margin > 0:
+            separation = np.stack([
+                np.asarray(world_lib.separation_xy(*link, self.arrays.world))
+                for link in link_endpoints(self.arm.lengths, list(theta))])
+            if np.any(separation < self.margin):
+                link, slot = np.unravel_index(int(np.argmin(separation)), separation.shape)
+                name = self.world.slot_names(self.capacities)[slot]
+                raise ValueError(
+                    f"{which} posture {list(getattr(self, which))} breaks margin "
+                    f"{self.margin:g} cm: link {link + 1} is {separation[link, slot]:.4g} cm "
+                    f"from {name}"
+                )
 
     @property
     def n_joints(self) -> int:
@@ -164,8 +191,8 @@ class Problem:
             n_samples=self.n_samples,
             collision=self.collision,
             capacities=self.capacities,
-            refine_intervals=self.refine_intervals,
-            refine_factor=self.refine_factor,
+            with_margin=self.margin > 0,
+            certify_budget=self.certify_budget,
         )
 
     @functools.cached_property
@@ -175,6 +202,8 @@ class Problem:
             start=np.asarray(self.start),
             goal=np.asarray(self.goal),
             world=self.world.pack(self.capacities),
+            margin=np.asarray(self.margin),
+            certify_tol=np.asarray(self.certify_tol),
         )
 
     def replace(self, **changes) -> "Problem":
@@ -193,7 +222,8 @@ class Problem:
                 f"  world    {len(world.circles)} circles, {len(world.boxes)} boxes, "
                 f"{len(world.polygons)} polygons",
                 f"  path     degree {self.degree} ({self.n_free} free coefficients), "
-                f"{self.n_samples} samples, {self.collision} collision check",
+                f"{self.n_samples} samples, {self.collision} collision check"
+                + (f", margin {self.margin:g} cm" if self.margin else ""),
                 f"  search   init range [{_describe(self.init_low)}, {_describe(self.init_high)}]",
             ]
         )
@@ -228,20 +258,28 @@ def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x) -> Evaluation:
       ``Evaluation`` of arrays of shape (...,).
     """
     rows = x.reshape((-1, x.shape[-1]))
+    # Separate loops for distance and collision: one scan carrying both was no faster, and
+    # slower for the certified check at small batches (XLA splits a bigger loop body into
+    # more fusions).
+    distance = path.travelling_distance(arrays.start, arrays.goal, rows, spec.degree,
+                                        spec.n_samples)
     if spec.collision == "sampled":
-        check = collision_lib.sampled_fold(arrays.lengths, arrays.world, rows, spec.n_samples)
+        violation = path.run_fold(
+            collision_lib.sampled_fold(arrays.lengths, arrays.world, rows, spec.n_samples,
+                                       arrays.margin, exact=spec.with_margin),
+            arrays.start, arrays.goal, rows, spec.degree, spec.n_samples)
     else:
-        check = collision_lib.certified_fold(
-            arrays.lengths, arrays.world, arrays.start, arrays.goal, rows, spec.degree,
-            spec.n_samples, spec.refine_intervals, spec.refine_factor)
-    # Two loops: one scan carrying both folds was no faster, and slower for the certified
-    # check at small batches (XLA splits a bigger loop body into more fusions).
-    distance, violation = (path.run_fold(fold, arrays.start, arrays.goal, rows, spec.degree,
-                                         spec.n_samples)
-                           for fold in (path.distance_fold(rows), check))
+        violation = certify_rows(spec, arrays, rows).violation
     fitness = jnp.where(violation == 0, 1.0 / distance, 0.0).astype(x.dtype)  # NaN: 0
     return jax.tree.map(lambda a: a.reshape(x.shape[:-1]),
                         Evaluation(fitness=fitness, violation=violation, distance=distance))
+
+
+def certify_rows(spec: ProblemSpec, arrays: ProblemArrays, rows) -> certified_lib.CertifiedCheck:
+    """The certified check (``jaxarm.certified``) of paths ``rows``, shape (B, n_free)."""
+    return certified_lib.check(arrays.lengths, arrays.world, arrays.start, arrays.goal, rows,
+                               spec.degree, spec.n_samples, arrays.certify_tol, arrays.margin,
+                               spec.certify_budget)
 
 
 @functools.cache
@@ -354,3 +392,47 @@ def coefficients(problem: Problem, x) -> jax.Array:
     """
     x = _as_params(problem, x)
     return path.coefficients(problem.arrays.start, problem.arrays.goal, x, problem.degree)
+
+
+class Certificate(NamedTuple):
+    """The certified check's verdict on paths (``certify``), each field of shape (...,)."""
+
+    free: jax.Array  # bool: proved to keep the margin from every obstacle for all r in [0, 1]
+    colliding: jax.Array  # bool: some tested time breaks the margin (never both)
+    clearance: jax.Array  # cm: a lower bound on the motion's smallest distance to an obstacle
+    #   when free (>= margin); the smallest distance found (< margin; negative: penetration
+    #   depth) when colliding; the smallest distance bound seen otherwise
+    exhausted: jax.Array  # bool: neither, because the check's budget ran out
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _certify(spec, arrays, x):
+    rows = x.reshape((-1, x.shape[-1]))
+    check = certify_rows(spec, arrays, rows)
+    return Certificate(*(a.reshape(x.shape[:-1]) for a in (
+        check.free, check.colliding, check.clearance, check.exhausted)))
+
+
+def certify(problem: Problem, x) -> Certificate:
+    """Prove paths collision-free for every r in [0, 1], or find where they collide.
+
+    Whatever the problem's ``collision`` mode, this runs the certified check: a motion whose
+    clearance exceeds ``problem.margin`` by at least ``problem.certify_tol`` everywhere is
+    ``free``; one that comes closer than the margin at some tested time is ``colliding``; in
+    between (within the tolerance of the margin), or when the budget runs out, neither.
+
+    Args:
+      problem: the problem.
+      x: free parameters, shape (..., n_free).
+
+    Returns:
+      ``Certificate`` of arrays of shape (...,).
+
+    Example:
+      >>> problem = jaxarm.load_scenario("paper-case-2")
+      >>> certificate = jaxarm.certify(problem, [66.7388, -28.1028, -9.8855])
+      >>> bool(certificate.free), bool(certificate.colliding)
+      (True, False)
+    """
+    return _certify(problem.spec._replace(collision="certified"), problem.arrays,
+                    _as_params(problem, x))

@@ -49,6 +49,7 @@ def surrogate(spec, arrays, x, barrier_weight, margin, temperature):
         return total + sum(temperature * jax.nn.softplus((margin - c) / temperature)
                            for c in bounds)
 
+    margin = margin + arrays.margin  # the barrier's margin on top of the problem's
     barrier = path.SampleFold(init=jnp.zeros(x.shape[:-1], x.dtype), step=add_barrier,
                               finish=lambda total: total / spec.n_samples, max_order=0)
     distance = path.travelling_distance(arrays.start, arrays.goal, x, spec.degree,
@@ -104,7 +105,8 @@ def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weig
       optimizer: an optax ``GradientTransformation`` (default ``optax.adam(0.2)``); pass the
         same instance again to reuse the compiled program.
       barrier_weight: weight of the clearance barrier (per sample, in the distance's units).
-      margin, temperature: the barrier's clearance margin and softness (cm).
+      margin, temperature: the barrier's clearance margin (cm, on top of ``problem.margin``)
+        and softness (cm).
 
     Returns:
       ``RefineResult`` with the shape of ``x``.

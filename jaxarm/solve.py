@@ -20,7 +20,7 @@ import numpy as np
 
 from jaxarm import pso
 from jaxarm._validate import positive_int
-from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, collides, vmapped_evaluate
+from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, certify, vmapped_evaluate
 
 
 class Result(NamedTuple):
@@ -37,7 +37,7 @@ class Result(NamedTuple):
     restart_escape_iter: np.ndarray  # shape=(n_restarts,), int, -1 when never escaped
     restart_escape_x: np.ndarray  # shape=(n_restarts, n_free), global best at escape, NaN if never
     restart_history: np.ndarray  # shape=(n_restarts, n_iters + 1)
-    certified: bool  # best_x re-checked in certified (continuous) mode and passed
+    certified: bool  # best_x proved free for every r by ``jaxarm.certify``
     pso_best_fitness: float  # best_fitness before refinement (equal when refine=False)
     method: str  # preset name or "custom"
     config: pso.PSOConfig
@@ -59,6 +59,9 @@ class Result(NamedTuple):
             f"best a   {np.array2string(self.best_x, precision=4, separator=', ')}",
             f"fitness  {self.best_fitness:.5g}  feasible {self.feasible}  "
             f"certified {self.certified}",
+            *([f"WARNING  feasible only at the {self.collision} check's samples: the motion is "
+               "not certified collision-free between them"]
+              if self.feasible and not self.certified else []),
             f"escape   iteration {self.escape_iter} (best restart); "
             f"{escaped}/{self.n_restarts} restarts escaped",
             f"time     {self.seconds:.2f} s",
@@ -273,7 +276,8 @@ def _result(problem, method, config, constraint, seed, outcome: RestartOutcome, 
     best = _best_restart(outcome.best_fitness, outcome.best_violation)
     best_x = outcome.best_x[best]
     feasible = bool(outcome.best_violation[best] == 0)
-    certified = feasible and not bool(collides(problem.replace(collision="certified"), best_x))
+    certified = feasible and (problem.collision == "certified"
+                              or bool(certify(problem, best_x).free))
     return Result(
         best_x=best_x,
         best_fitness=float(outcome.best_fitness[best]),

@@ -13,7 +13,9 @@ Schema (units: cm and rad)::
     [search]                           # all optional
     degree = 6                         # polynomial degree >= 6
     samples = 101                      # odd
-    collision = "sampled"              # or "certified"
+    collision = "certified"            # default; "sampled" is the paper's check at the samples
+    margin = 0.0                       # cm every link keeps from every obstacle
+    certify_tol = 0.01                 # cm: the certified check's tolerance
     init_low = -100.0                  # scalar or one value per free coefficient
     init_high = 100.0
     [[obstacles]]                      # any number of these
@@ -38,7 +40,8 @@ class ScenarioError(ValueError):
 
 
 _TOP_KEYS = {"name", "description", "units", "arm", "start", "goal", "search", "obstacles"}
-_SEARCH_KEYS = {"degree", "samples", "collision", "init_low", "init_high"}
+_SEARCH_KEYS = {"degree", "samples", "collision", "init_low", "init_high", "margin",
+                "certify_tol"}
 _OBSTACLE_KEYS = {
     "circle": {"type", "center", "radius"},
     "box": {"type", "min", "max"},
@@ -61,7 +64,7 @@ def load_scenario(name_or_path: str | pathlib.Path, **overrides) -> Problem:
 
     Args:
       name_or_path: a name from ``available()`` (e.g. ``"paper-case-1"``) or a path to a .toml.
-      **overrides: ``Problem`` fields to replace (e.g. ``collision="certified"``).
+      **overrides: ``Problem`` fields to replace (e.g. ``collision="sampled"``).
 
     Returns:
       The ``Problem``.
@@ -171,9 +174,11 @@ def _problem(data: dict, default_name: str) -> Problem:
     fields = {
         "degree": search.get("degree", 6),
         "n_samples": search.get("samples", 101),
-        "collision": search.get("collision", "sampled"),
+        "collision": search.get("collision", "certified"),
         "init_low": search.get("init_low", -100.0),
         "init_high": search.get("init_high", 100.0),
+        "margin": search.get("margin", 0.0),
+        "certify_tol": search.get("certify_tol", 0.01),
     }
     return Problem(
         arm=arm,

@@ -1,0 +1,126 @@
+"""The certified continuous check against an independent dense oracle (shapely, float64)."""
+
+import numpy as np
+import pytest
+
+import jaxarm
+from jaxarm.oracle import dense_clearance
+
+CAPACITIES = (4, 4, 4)
+START, GOAL = [-1.0, 1.2, 0.8], [1.2, -0.6, 1.0]
+
+
+def thin_world_problem(rng, **fields):
+    """A 0.2 cm wall and a circle somewhere in the arm's way (skipping colliding postures)."""
+    arm = jaxarm.Arm((30.0, 30.0, 20.0))
+    while True:
+        corner = rng.uniform(-50, 50, 2)
+        size = (0.2, rng.uniform(5, 30)) if rng.random() < 0.5 else (rng.uniform(5, 30), 0.2)
+        world = jaxarm.World(boxes=[(tuple(corner), tuple(corner + size))],
+                             circles=[(*rng.uniform(-60, 60, 2), rng.uniform(1, 5))])
+        try:
+            return jaxarm.Problem(arm=arm, start=START, goal=GOAL, world=world,
+                                  capacities=CAPACITIES, **fields)
+        except ValueError:
+            continue
+
+
+def test_certify_is_sound_and_tight_against_a_dense_oracle(rng):
+    """0 false "free" over 300 random thin-obstacle worlds; motions clear by >= 2 tol are
+    certified, motions penetrating by >= 2 tol are found colliding (the issue's targets)."""
+    clearances, free, colliding = [], [], []
+    for _ in range(300):
+        problem = thin_world_problem(rng)
+        x = rng.uniform(-60, 60, (64, problem.n_free))
+        sampled = np.asarray(jaxarm.violation(problem.replace(collision="sampled"), x)) == 0
+        # Motions free at the 101 samples are the interesting ones; a few others too.
+        rows = np.concatenate([np.nonzero(sampled)[0][:5], np.nonzero(~sampled)[0][:1]])
+        certificate = jaxarm.certify(problem, x[rows])
+        clearances.append(dense_clearance(problem, x[rows], 2001))
+        free.append(np.asarray(certificate.free))
+        colliding.append(np.asarray(certificate.colliding))
+        assert not np.any(free[-1] & colliding[-1])
+    clearance, free, colliding = map(np.concatenate, (clearances, free, colliding))
+    tol = 0.01
+    assert not np.any(free & (clearance < 0)), clearance[free & (clearance < 0)]
+    clear = clearance >= 2 * tol
+    deep = clearance <= -2 * tol
+    assert clear.sum() > 500 and deep.sum() > 100, (clear.sum(), deep.sum())
+    assert free[clear].mean() >= 0.995, free[clear].mean()
+    assert colliding[deep].mean() >= 0.99, colliding[deep].mean()
+    # The sampled check steps over some of these walls; the certified one must not.
+    assert np.sum(deep & ~colliding) <= 0.01 * deep.sum()
+
+
+def test_certificate_fields_and_the_papers_free_paths(case2):
+    published = np.array([[66.7388, -28.1028, -9.8855], [62.9, -25.115, -15.554]])
+    certificate = jaxarm.certify(case2, published)
+    assert certificate.free.shape == (2,) and bool(np.all(certificate.free))
+    assert not bool(np.any(certificate.colliding | certificate.exhausted))
+    # A lower bound on the true clearance when free.
+    assert np.all(np.asarray(certificate.clearance) <= dense_clearance(case2, published) + 1e-4)
+    assert np.all(np.asarray(certificate.clearance) >= 0)
+    batched = jaxarm.certify(case2, np.broadcast_to(published, (3, 2, 3)))
+    assert batched.free.shape == (3, 2)
+
+
+def test_colliding_motions_report_the_penetration_found(case1):
+    x = np.array([[0.0, 0.0, 0.0], [80.0, -60.0, 10.0]])
+    dense = dense_clearance(case1, x)
+    certificate = jaxarm.certify(case1, x)
+    hits = dense < -0.1
+    assert np.all(np.asarray(certificate.colliding)[hits])
+    assert np.all(np.asarray(certificate.clearance)[hits] < 0)
+
+
+def test_certified_verdicts_do_not_depend_on_the_batch(rng):
+    problem = thin_world_problem(rng)
+    x = rng.uniform(-60, 60, (40, problem.n_free)).astype(np.float32)
+    together = jaxarm.violation(problem, x)
+    alone = np.stack([np.asarray(jaxarm.violation(problem, row)) for row in x[:6]])
+    np.testing.assert_array_equal(np.asarray(together)[:6], alone)
+
+
+def test_margin_keeps_the_arm_away(case2):
+    x = np.array([[66.7388, -28.1028, -9.8855], [113.0533, -42.3741, -10.0300]])
+    dense = dense_clearance(case2, x)
+    for margin in (0.5, 2.0):
+        kept = dense >= margin + 0.02
+        broken = dense < margin - 0.02
+        for mode in ("sampled", "certified"):
+            problem = case2.replace(margin=margin, collision=mode)
+            free = np.asarray(jaxarm.violation(problem, x)) == 0
+            assert not np.any(free & broken)
+            if mode == "certified":
+                assert np.all(free[kept])
+                assert not np.any(np.asarray(jaxarm.certify(problem, x).free) & broken)
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("margin", -1.0, "margin must be >= 0"),
+    ("margin", float("nan"), "margin must be finite"),
+    ("margin", "wide", "margin must be a number"),
+    ("certify_tol", 0.0, "certify_tol must be > 0"),
+    ("certify_tol", float("inf"), "certify_tol must be finite"),
+    ("certify_budget", 0, "certify_budget must be >= 1"),
+])
+def test_bad_certification_settings_name_the_field(case2, field, value, message):
+    with pytest.raises(ValueError, match=message):
+        case2.replace(**{field: value})
+
+
+def test_a_margin_the_start_posture_breaks_is_an_error(case2):
+    with pytest.raises(ValueError, match="start posture .* breaks margin 40 cm"):
+        case2.replace(margin=40.0)
+
+
+def test_certified_is_the_default_and_sampled_results_say_so(case2):
+    assert jaxarm.load_scenario("paper-case-1").collision == "certified"
+    assert case2.collision == "certified"
+    sampled = jaxarm.solve(case2.replace(collision="sampled"), "A", n_restarts=2, n_iters=30,
+                           constraint="feasibility")
+    if sampled.feasible and not sampled.certified:
+        assert "not certified" in sampled.summary()
+    certified = jaxarm.solve(case2, "A", n_restarts=2, n_iters=30, constraint="feasibility")
+    assert certified.feasible == certified.certified
+    assert bool(jaxarm.certify(case2, certified.best_x).free) == certified.feasible
