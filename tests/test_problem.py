@@ -59,8 +59,8 @@ def test_batched_equals_looped_for_any_leading_shape(case2, rng):
 
 @pytest.mark.parametrize("mode", ["sampled", "certified"])
 def test_jit_equals_no_jit(case2, rng, mode):
-    # Eager scans run step by step in Python: few samples and sub-windows.
-    problem = case2.replace(collision=mode, n_samples=21, refine_intervals=4, refine_factor=3)
+    # Eager loops run step by step in Python: few samples, a small bisection budget.
+    problem = case2.replace(collision=mode, n_samples=21, certify_budget=32)
     x = jnp.asarray(rng.uniform(-200, 200, (64, 3)), dtype=jnp.float32)
     spec, arrays = problem.spec, problem.arrays
     with jax.disable_jit():

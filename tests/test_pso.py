@@ -222,7 +222,7 @@ def test_result_fields_are_consistent(case2):
     assert np.all(np.diff(result.restart_history, axis=1) >= 0)
     escaped = result.restart_escape_iter >= 0
     assert np.all(result.restart_history[escaped, -1] > 0)
-    assert (result.method, result.constraint, result.collision) == ("A", "death", "sampled")
+    assert (result.method, result.constraint, result.collision) == ("A", "death", "certified")
     assert "fitness" in result.summary()
 
 
