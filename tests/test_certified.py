@@ -6,23 +6,7 @@ import pytest
 import jaxarm
 from jaxarm.oracle import dense_clearance
 
-CAPACITIES = (4, 4, 4)
-START, GOAL = [-1.0, 1.2, 0.8], [1.2, -0.6, 1.0]
-
-
-def thin_world_problem(rng, **fields):
-    """A 0.2 cm wall and a circle somewhere in the arm's way (skipping colliding postures)."""
-    arm = jaxarm.Arm((30.0, 30.0, 20.0))
-    while True:
-        corner = rng.uniform(-50, 50, 2)
-        size = (0.2, rng.uniform(5, 30)) if rng.random() < 0.5 else (rng.uniform(5, 30), 0.2)
-        world = jaxarm.World(boxes=[(tuple(corner), tuple(corner + size))],
-                             circles=[(*rng.uniform(-60, 60, 2), rng.uniform(1, 5))])
-        try:
-            return jaxarm.Problem(arm=arm, start=START, goal=GOAL, world=world,
-                                  capacities=CAPACITIES, **fields)
-        except ValueError:
-            continue
+from test_geometry import thin_wall_problem as thin_world_problem  # a 0.2 cm wall, a circle
 
 
 def test_certify_is_sound_and_tight_against_a_dense_oracle(rng):
