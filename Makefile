@@ -1,9 +1,10 @@
-# `make demo` runs the main job, `make test` the test suite; each creates .venv when missing.
+# `make demo` runs the main job, `make test` the quick test suite (everything not marked slow),
+# `make test-all` every test (what CI runs); each creates .venv when missing.
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test test-slow clean
+.PHONY: demo test test-all test-slow clean
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -18,6 +19,9 @@ demo: $(VENV)/.installed-test
 	@echo "Report: results/report.md"
 
 test: $(VENV)/.installed-test
+	$(BIN)/python -m pytest -q -m "not slow"
+
+test-all: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q
 
 test-slow: $(VENV)/.installed-test

@@ -9,6 +9,7 @@ from jaxarm.oracle import dense_clearance
 from test_geometry import thin_wall_problem as thin_world_problem  # a 0.2 cm wall, a circle
 
 
+@pytest.mark.slow
 def test_certify_is_sound_and_tight_against_a_dense_oracle(rng):
     """0 false "free" over 300 random thin-obstacle worlds; motions clear by >= 2 tol are
     certified, motions penetrating by >= 2 tol are found colliding (the issue's targets)."""
@@ -98,8 +99,9 @@ def test_a_margin_the_start_posture_breaks_is_an_error(case2):
         case2.replace(margin=40.0)
 
 
-def test_certified_is_the_default_and_sampled_results_say_so(case2):
+def test_certified_is_the_default_and_sampled_results_say_so():
     assert jaxarm.load_scenario("paper-case-1").collision == "certified"
+    case2 = jaxarm.load_scenario("paper-case-2")
     assert case2.collision == "certified"
     sampled = jaxarm.solve(case2.replace(collision="sampled"), "A", n_restarts=2, n_iters=30,
                            constraint="feasibility")

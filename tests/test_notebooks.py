@@ -13,6 +13,7 @@ def test_there_are_two_notebooks():
     assert {p.name for p in NOTEBOOKS} == {"quickstart.ipynb", "paper_reproduction.ipynb"}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_notebook_executes_and_is_committed_without_outputs(path, tmp_path):
     notebook = nbformat.read(path, as_version=4)

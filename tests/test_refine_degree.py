@@ -70,6 +70,7 @@ def test_raise_degree_keeps_the_same_path(degree, data):
                                np.asarray(jaxarm.joint_path(problem, x, r)), atol=1e-4)
 
 
+@pytest.mark.slow
 def test_degree_8_on_case_1_is_at_least_as_good_as_degree_6(case1):
     settings_ = dict(n_restarts=20, constraint="feasibility", seed=0)
     six = jaxarm.solve(case1, "A", **settings_)
@@ -85,6 +86,7 @@ def test_degree_8_on_case_1_is_at_least_as_good_as_degree_6(case1):
     np.testing.assert_allclose(ends, [case1.start, case1.goal], atol=1e-4)
 
 
+@pytest.mark.slow
 def test_five_link_scenario_solves_and_is_free_by_shapely():
     from test_geometry import oracle_separation
 

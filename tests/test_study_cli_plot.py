@@ -152,6 +152,7 @@ def test_plots_produce_non_empty_pngs(tmp_path, case2):
 
 
 
+@pytest.mark.slow
 def test_cli_reproduce_paper_writes_a_report_with_every_table(capsys, tmp_path):
     code, out, _ = run_cli(capsys, "reproduce-paper", "--out", str(tmp_path), "--seeds", "8",
                            "--suite", "paper-case-2,open-space", "--suite-seeds", "4",
