@@ -71,18 +71,19 @@ def test_raise_degree_keeps_the_same_path(degree, data):
 
 
 @pytest.mark.slow
-def test_degree_8_on_case_1_is_at_least_as_good_as_degree_6(case1):
+def test_degree_8_on_case_1_warm_started_is_at_least_as_good_as_degree_6(case1):
+    # Cold, degree 8 rarely escapes on case 1 (4 % of 100 restarts, benchmarks/RESULTS.md);
+    # warm-started from the degree-6 optimum it can only do better.
     settings_ = dict(n_restarts=20, constraint="feasibility", seed=0)
     six = jaxarm.solve(case1, "A", **settings_)
+    assert six.feasible
     eight_problem = case1.replace(degree=8)
-    eight = jaxarm.solve(eight_problem, "A", **settings_)
-    assert six.feasible and eight.feasible and eight.best_x.shape == (9,)
-    assert eight.best_fitness >= six.best_fitness
     warm = jaxarm.solve(eight_problem, "A", init_particles=[jaxarm.raise_degree(six.best_x, 3, 8)],
                         **settings_)
+    assert warm.feasible and warm.best_x.shape == (9,)
     assert warm.best_fitness >= six.best_fitness * (1 - 1e-6)
     # The higher-degree path still meets the boundary conditions.
-    ends = np.asarray(jaxarm.joint_path(eight_problem, eight.best_x, np.array([0.0, 1.0])))
+    ends = np.asarray(jaxarm.joint_path(eight_problem, warm.best_x, np.array([0.0, 1.0])))
     np.testing.assert_allclose(ends, [case1.start, case1.goal], atol=1e-4)
 
 
