@@ -12,7 +12,7 @@ Runs ``jaxarm.reconstruct`` end to end and prints markdown (the source of RESULT
    under its 101-sample check (0.05 cm gap), picked to block the 6 it calls infeasible and the
    obstacle-free optimum; label agreement with one and two circles, and under a dense sweep.
 
-    python benchmarks/reconstruct_scenarios.py            # about 6 minutes on 2 CPU cores
+    python benchmarks/reconstruct_scenarios.py            # about 5 minutes on 2 CPU cores
     python benchmarks/reconstruct_scenarios.py --seeds 100
 """
 
@@ -25,13 +25,10 @@ import numpy as np
 
 import jaxarm
 from jaxarm import published, reconstruct
-from jaxarm.study import escape_study
+from jaxarm.published import a6_array
+from jaxarm.study import escape_study, wilson_interval
 
 ARM = jaxarm.Arm((30.0, 30.0, 20.0))
-
-
-def _a6(sets) -> np.ndarray:
-    return np.array([s.a6 for s in sets], np.float64)
 
 
 def _circles(layout, k) -> list[tuple[float, float, float]]:
@@ -57,7 +54,7 @@ def fit_case_1() -> reconstruct.PostureFit:
 def obstacles_case_1(fit, n_seeds: int) -> None:
     base = jaxarm.Problem(arm=ARM, start=fit.start, goal=fit.goal, collision="sampled",
                           capacities=(4, 4, 4))
-    candidates = reconstruct.circle_candidates(base, _a6(published.CASE_1))
+    candidates = reconstruct.circle_candidates(base, a6_array(published.CASE_1))
     layout = reconstruct.greedy_circles(base, candidates, 3, block=[[0.0, 0.0, 0.0]])
     print("## Case 1 obstacles\n")
     print(f"{len(candidates)} candidate circles; greedy picks (free share of "
@@ -66,14 +63,14 @@ def obstacles_case_1(fit, n_seeds: int) -> None:
         print(f"- circle {circle}: {share:.2%} free")
     problem = base.replace(world=jaxarm.World(circles=_circles(layout, 3)))
     verdicts = reconstruct.label_agreement(problem, published.CASE_1)
-    certified = np.asarray(jaxarm.certify(problem, _a6(published.CASE_1)).free)
+    certified = np.asarray(jaxarm.certify(problem, a6_array(published.CASE_1)).free)
     print(f"\nTable 2 paths free: {sum(v.agrees for v in verdicts)}/17 sampled, "
           f"{int(certified.sum())}/17 certified; obstacle-free optimum a6 = 0 "
           f"{'blocked' if float(jaxarm.fitness(problem, [0.0, 0.0, 0.0])) == 0 else 'FREE'}\n")
     study = escape_study(problem, ["A", "B", "C"], n_seeds=n_seeds, progress=False)
+    low, high = wilson_interval(3, 7)
     print(f"Death-penalty escape over {n_seeds} seeds (paper: 3/7 each, 95 % interval "
-          f"{jaxarm.study.wilson_interval(3, 7)[0]:.0%}-{jaxarm.study.wilson_interval(3, 7)[1]:.0%}):"
-          "\n")
+          f"{low:.0%}-{high:.0%}):\n")
     print("| preset | escaped | 95 % interval | median escape iteration | best fitness |")
     print("|---|---|---|---|---|")
     for method in study.methods:
@@ -87,20 +84,21 @@ def obstacles_cases_2_and_3() -> None:
     case2 = jaxarm.load_scenario("paper-case-2", collision="sampled")
     base = case2.replace(world=jaxarm.World(), capacities=(4, 4, 4))
     free_sets = [s for s in published.CASE_2 if s.feasible]
-    block = np.vstack([_a6([s for s in published.CASE_2 if not s.feasible]), [[0.0, 0.0, 0.0]]])
-    candidates = reconstruct.circle_candidates(base, _a6(free_sets), spacing=0.5, gap=0.05,
+    block = np.vstack([a6_array([s for s in published.CASE_2 if not s.feasible]), [[0.0, 0.0, 0.0]]])
+    candidates = reconstruct.circle_candidates(base, a6_array(free_sets), spacing=0.5, gap=0.05,
                                                min_radius=0.25, n_points=base.n_samples)
     blocks_any = (reconstruct.sweep_distances(base, block, candidates[:, :2], base.n_samples)
                   < candidates[:, 2]).any(axis=0)
     layout = reconstruct.greedy_circles(base, candidates[blocks_any], 2, block=block,
                                         n_paths=3000)
-    dense = reconstruct.sweep_distances(base, _a6(free_sets), candidates[:, :2], 1001).min(0)
+    dense = reconstruct.sweep_distances(base, a6_array(free_sets), candidates[:, :2], 1001).min(0)
     blockable = (reconstruct.sweep_distances(base, block[:-1], candidates[:, :2], 1001)
                  < dense - 0.05).any(axis=1)
     print("## Cases II and III obstacle\n")
     print(f"{int(blocks_any.sum())} of {len(candidates)} candidate circles block a set the "
           f"paper calls infeasible. With the feasible sets' sweep measured at 1,001 points "
-          f"instead of the paper's 101, the infeasible sets that any circle can still block: "
+          f"instead of the paper's 101, the infeasible sets that any candidate circle can "
+          f"still block: "
           f"{int(blockable.sum())}/6 ({block[:-1][~blockable].tolist()} cannot).\n")
     print("| circles | labels agreeing (sampled) | disagreeing | feasible sets certified | "
           "a6 = 0 | case III optimum |")
@@ -111,7 +109,7 @@ def obstacles_cases_2_and_3() -> None:
         problem = base.replace(world=world)
         verdicts = reconstruct.label_agreement(problem, published.CASE_2)
         wrong = [f"{list(v.published.a6)} ({v.fitness:.4f})" for v in verdicts if not v.agrees]
-        certified = int(np.asarray(jaxarm.certify(problem, _a6(free_sets)).free).sum())
+        certified = int(np.asarray(jaxarm.certify(problem, a6_array(free_sets)).free).sum())
         zero = "blocked" if float(jaxarm.fitness(problem, [0.0, 0.0, 0.0])) == 0 else "free"
         three = float(jaxarm.fitness(case3.replace(world=world, capacities=(4, 4, 4)),
                                      published.CASE_3[0].a6))

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import numpy as np
+
 
 class PublishedSet(NamedTuple):
     """One published coefficient set: where it is printed, the set, the paper's fitness."""
@@ -20,6 +22,11 @@ class PublishedSet(NamedTuple):
     @property
     def feasible(self) -> bool:
         return self.fitness > 0
+
+
+def a6_array(sets) -> np.ndarray:
+    """The coefficient sets of ``sets`` as one array, shape (n_sets, 3), float64."""
+    return np.array([s.a6 for s in sets], np.float64).reshape(-1, 3)
 
 
 def _sets(source: str, rows) -> tuple[PublishedSet, ...]:

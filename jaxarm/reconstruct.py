@@ -29,7 +29,7 @@ import numpy as np
 from jaxarm import path
 from jaxarm.arm import Arm, inverse_kinematics, joint_positions
 from jaxarm.problem import Problem, fitness, joint_path
-from jaxarm.published import PublishedSet
+from jaxarm.published import PublishedSet, a6_array
 
 
 class PostureFit(NamedTuple):
@@ -102,7 +102,7 @@ def fit_postures(arm: Arm, end_points, sets: Sequence[PublishedSet], *, n_sample
     sets = [s for s in sets if s.feasible]
     if not sets:
         raise ValueError("sets must contain at least one published set with fitness > 0")
-    x = np.array([s.a6 for s in sets], np.float64)
+    x = a6_array(sets)
     published = np.array([s.fitness for s in sets], np.float64)
     worst = _worst_errors_fn(x, published, n_samples)
     (start_xy, goal_xy) = end_points
@@ -152,7 +152,7 @@ class Verdict(NamedTuple):
 
 def label_agreement(problem: Problem, sets: Sequence[PublishedSet]) -> list[Verdict]:
     """Whether ``problem`` gives each published set the paper's verdict (free or colliding)."""
-    ours = np.asarray(fitness(problem, np.array([s.a6 for s in sets], np.float64)), np.float64)
+    ours = np.asarray(fitness(problem, a6_array(sets)), np.float64)
     return [Verdict(s, float(f), bool((f > 0) == s.feasible)) for s, f in zip(sets, ours)]
 
 

@@ -277,8 +277,8 @@ def test_case_1_death_penalty_escape_is_consistent_with_the_papers_3_of_7_for_a(
 
 @pytest.mark.parametrize("fixture", ["case2", "case3"])
 def test_feasibility_rules_escape_on_cases_2_and_3(fixture, request):
-    # On case 1 they do not (62 % over these 200 seeds, below the death penalty's 70 %): its
-    # feasible pocket is not where penetration is shallowest (benchmarks/RESULTS.md).
+    # On case 1 they do not (62 % over these 200 seeds, below the death penalty's 70 %;
+    # benchmarks/RESULTS.md).
     assert _escape_rate(request.getfixturevalue(fixture), "A", "feasibility") >= 0.99
 
 

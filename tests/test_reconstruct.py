@@ -9,14 +9,11 @@ import pytest
 import jaxarm
 from jaxarm import published, reconstruct
 from jaxarm.oracle import dense_clearance, link_segments
-
-
-def _a6(sets):
-    return np.array([s.a6 for s in sets], np.float64)
+from jaxarm.published import a6_array
 
 
 def test_case_1_postures_reproduce_table_2_to_4_significant_figures(case1):
-    ours = np.asarray(jaxarm.fitness(case1, _a6(published.CASE_1)), np.float64)
+    ours = np.asarray(jaxarm.fitness(case1, a6_array(published.CASE_1)), np.float64)
     paper = np.array([s.fitness for s in published.CASE_1])
     assert np.max(np.abs(ours - paper) / paper) <= 6e-4
     for joints, point in zip((case1.start, case1.goal), published.CASE_1_END_POINTS):
@@ -27,19 +24,19 @@ def test_case_1_postures_reproduce_table_2_to_4_significant_figures(case1):
 @pytest.mark.parametrize("mode", ["sampled", "certified"])
 def test_case_1_published_paths_are_free_and_the_free_optimum_is_blocked(case1, mode):
     problem = case1.replace(collision=mode)
-    assert not bool(np.any(jaxarm.collides(problem, _a6(published.CASE_1))))
+    assert not bool(np.any(jaxarm.collides(problem, a6_array(published.CASE_1))))
     assert bool(jaxarm.collides(problem, [0.0, 0.0, 0.0]))
 
 
 def test_case_1_published_paths_clear_the_obstacles_under_a_dense_oracle(case1):
-    assert dense_clearance(case1, _a6(published.CASE_1)).min() > 0.3
+    assert dense_clearance(case1, a6_array(published.CASE_1)).min() > 0.3
 
 
 def test_case_2_verdicts_agree_with_the_paper_but_one(case2):
     verdicts = reconstruct.label_agreement(case2, published.CASE_2)
     wrong = [v.published.a6 for v in verdicts if not v.agrees]
-    # All 18 feasible sets free and 5 of the 6 infeasible blocked; the sixth lies inside the
-    # feasible sets' sweep except between the paper's samples (benchmarks/reconstruct_scenarios).
+    # All 18 feasible sets free and 5 of the 6 infeasible blocked; no candidate circle blocks the
+    # sixth once the feasible sets are measured densely (benchmarks/reconstruct_scenarios.py).
     assert wrong == [(124.1641, -53.39, 22.0)]
     assert bool(jaxarm.collides(case2, [0.0, 0.0, 0.0]))
 
@@ -90,7 +87,7 @@ def test_sweep_distances_match_shapely(case1):
 
 def test_greedy_circles_block_what_they_must_and_keep_the_free_paths_clear(case1):
     base = case1.replace(world=jaxarm.World(), capacities=(4, 4, 4))
-    keep = _a6(published.CASE_1[:4])
+    keep = a6_array(published.CASE_1[:4])
     candidates = reconstruct.circle_candidates(base, keep, spacing=8.0)
     assert candidates.shape[1] == 3 and np.all(candidates[:, 2] >= 2.0)
     layout = reconstruct.greedy_circles(base, candidates, 2, block=[[0.0, 0.0, 0.0]],
