@@ -41,43 +41,48 @@ def penetration(lengths, world, theta):
                       for link in links], axis=-2)
 
 
-def _nearest(separation):
-    """Min over obstacle slots (the leading axis); +inf for a world without obstacles."""
-    if separation.shape[0] == 0:
-        return jnp.full(separation.shape[1:], jnp.inf, separation.dtype)
-    return separation.min(axis=0)
-
-
-def posture_penetration(lengths, world, theta: list, margin=0.0,
-                        separation_fn=world_lib.separation_bound_xy):
+def posture_penetration(lengths, world, theta: list, margin=0.0, exact: bool = False):
     """How far every link is inside the margin around every obstacle, summed, at one posture
     per path.
 
     Args:
       theta: per-joint angles, each of shape (...,).
       margin: cm, a scalar.
-      separation_fn: ``world.separation_bound_xy`` (exact where <= 0: enough for margin 0)
-        or ``world.separation_xy`` (exact distances, needed for a positive margin).
+      exact: exact distances (needed for a positive margin), or the separating-axis bound
+        for polygons (exact where <= 0: enough for margin 0); see ``world.separation_parts``.
 
     Returns:
       Array of shape (...,), >= 0, zero iff every link keeps the margin from every obstacle.
     """
-    return sum(jnp.maximum(margin - separation_fn(*link, world), 0.0).sum(axis=0)
-               for link in link_endpoints(lengths, theta))
+    total = jnp.zeros_like(theta[0])
+    for link in link_endpoints(lengths, theta):
+        parts = world_lib.separation_parts(*link, world, exact)
+        for circle in parts.circles:
+            total = total + jnp.maximum(margin - circle, 0.0)
+        if parts.polygons is not None:
+            total = total + jnp.maximum(margin - parts.polygons, 0.0).sum(axis=0)
+    return total
 
 
-def posture_clearance_bound(lengths, world, theta: list,
-                            separation_fn=world_lib.separation_bound_xy) -> list:
+def posture_clearance_bound(lengths, world, theta: list, exact: bool = False) -> list:
     """Lower bounds on every link's distance to the nearest obstacle at one posture per path.
 
     Args:
       theta: per-joint angles, each of shape (...,).
-      separation_fn: ``world.separation_bound_xy`` (cheap) or ``world.separation_xy`` (exact).
+      exact: exact distances, or the cheaper bound (``world.separation_parts``).
 
     Returns:
-      A list of n_joints arrays of shape (...,); negative values are minus a penetration depth.
+      A list of n_joints arrays of shape (...,); negative values are minus a penetration
+      depth; +inf for a world without obstacles.
     """
-    return [_nearest(separation_fn(*link, world)) for link in link_endpoints(lengths, theta)]
+    bounds = []
+    for link in link_endpoints(lengths, theta):
+        parts = world_lib.separation_parts(*link, world, exact)
+        nearest = functools.reduce(jnp.minimum, parts.circles, jnp.full_like(theta[0], jnp.inf))
+        if parts.polygons is not None:
+            nearest = jnp.minimum(nearest, parts.polygons.min(axis=0))
+        bounds.append(nearest)
+    return bounds
 
 
 def sampled_fold(lengths, world, x, n_samples: int, margin=0.0,
@@ -91,11 +96,10 @@ def sampled_fold(lengths, world, x, n_samples: int, margin=0.0,
       margin: cm, a scalar (may be traced).
       exact: use exact distances (required when the margin may be positive).
     """
-    separation_fn = world_lib.separation_xy if exact else world_lib.separation_bound_xy
     return path.SampleFold(
         init=jnp.zeros(x.shape[:-1], x.dtype),
         step=lambda total, sample: total + posture_penetration(
-            lengths, world, sample.derivatives[0], margin, separation_fn),
+            lengths, world, sample.derivatives[0], margin, exact),
         finish=lambda total: total / (n_samples - 1),
         max_order=0,
     )
@@ -154,7 +158,7 @@ def speed_bound(start, goal, x, velocity: list, tail) -> list:
 
 
 def window_shortfall(lengths, world, theta: list, speed: list, radius, margin=0.0,
-                     separation_fn=world_lib.separation_bound_xy):
+                     exact: bool = False):
     """How far the window ``|r - r_c| <= radius`` around a posture is from certified (cm).
 
     Args:
@@ -163,7 +167,7 @@ def window_shortfall(lengths, world, theta: list, speed: list, radius, margin=0.
       speed: per-joint bounds on |theta_j'| over the window (``speed_bound``), each (...,).
       radius: the window's half-width in r, a scalar or shape (...,).
       margin: the clearance to keep (cm).
-      separation_fn: how the clearance at the centre is bounded (``posture_clearance_bound``).
+      exact: how the clearance at the centre is bounded (``posture_clearance_bound``).
 
     Returns:
       ``(shortfall, nearest)``, each of shape (...,): ``max_k (delta_k - (c_k - margin))``,
@@ -171,7 +175,7 @@ def window_shortfall(lengths, world, theta: list, speed: list, radius, margin=0.
       bound at the centre (< 0: a penetration, exact).
     """
     reach = reach_matrix(jnp.asarray(lengths, dtype=theta[0].dtype))
-    bounds = posture_clearance_bound(lengths, world, theta, separation_fn)
+    bounds = posture_clearance_bound(lengths, world, theta, exact)
     shortfall = functools.reduce(jnp.maximum, [
         radius * sum(speed[j] * reach[j, k] for j in range(k + 1)) - (bound - margin)
         for k, bound in enumerate(bounds)
