@@ -99,7 +99,7 @@ def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weig
 
     Args:
       problem: the problem; its collision mode decides what counts as colliding.
-      x: feasible free parameters, shape (n_free,) or (n, n_free). An infeasible row is returned
+      x: feasible free parameters, shape (..., n_free). An infeasible row is returned
         unchanged (no step can be accepted from it).
       n_steps: optimizer steps.
       optimizer: an optax ``GradientTransformation`` (default ``optax.adam(0.2)``); pass the
@@ -109,7 +109,8 @@ def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weig
         and softness (cm).
 
     Returns:
-      ``RefineResult`` with the shape of ``x``.
+      ``RefineResult`` whose fields have x's leading shape (...) (``x``: x's shape;
+      ``history``: (..., n_steps + 1)).
 
     Example:
       >>> problem = jaxarm.load_scenario("paper-case-2")
@@ -118,12 +119,9 @@ def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weig
       True
     """
     x = _as_params(problem, x)
-    single = x.ndim == 1
+    leading = x.shape[:-1]
     batch = x.reshape(-1, problem.n_free)
     optimizer = optimizer or DEFAULT_OPTIMIZER
     out = _compiled_refine(problem.spec, problem.arrays, batch, optimizer, int(n_steps),
                            barrier_weight, margin, temperature)
-    out = [np.asarray(a) for a in out]
-    if single:
-        out = [a[0] for a in out]
-    return RefineResult(*out)
+    return RefineResult(*(np.asarray(a).reshape(leading + a.shape[1:]) for a in out))

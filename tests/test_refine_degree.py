@@ -40,6 +40,17 @@ def test_refine_improves_a_deliberately_poor_path(case2):
     assert polished.n_accepted > 0 and polished.history.shape == (201,)
 
 
+def test_refine_keeps_the_leading_shape_of_x(case2):
+    poor = published.CASE_2_TABLE_4[4].a6
+    x = np.stack([np.stack([poor, [0.0, 0.0, 0.0], poor])] * 2)  # (2, 3, n_free)
+    polished = jaxarm.refine(case2, x, n_steps=5)
+    assert polished.x.shape == (2, 3, 3) and polished.fitness.shape == (2, 3)
+    assert polished.n_accepted.shape == (2, 3) and polished.history.shape == (2, 3, 6)
+    np.testing.assert_array_equal(polished.x[:, 1], 0.0)  # the colliding row stays put
+    single = jaxarm.refine(case2, poor, n_steps=5)
+    np.testing.assert_array_equal(polished.x[1, 2], single.x)
+
+
 def test_refine_leaves_a_colliding_path_alone(case2):
     polished = jaxarm.refine(case2, [0.0, 0.0, 0.0])  # blocked by the obstacle
     np.testing.assert_array_equal(polished.x, [0.0, 0.0, 0.0])
