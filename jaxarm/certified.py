@@ -413,9 +413,9 @@ def check(lengths, world, start, goal, x, degree: int, n_samples: int, certify_t
     decided = needs_work & ~exhausted
     colliding = sample_witness | (decided & out.witness)
     free = ~sample_witness & ~(needs_work & (out.witness | out.undecided | out.exhausted))
+    open_pieces = out.violation + jnp.where(exhausted, tol * step, 0.0)
     violation = jnp.where(sample_witness, windows.penetration * step,
-                          jnp.where(needs_work, out.violation + jnp.where(exhausted, tol * step, 0.0),
-                                    0.0))
+                          jnp.where(needs_work, open_pieces, 0.0))
     proved = jnp.minimum(-windows.worst_passed, jnp.where(needs_work, out.proved, jnp.inf))
     seen = jnp.where(decided, jnp.minimum(windows.nearest, out.nearest), windows.nearest)
     clearance = jnp.where(free, margin + proved, seen)

@@ -253,6 +253,7 @@ def circle_separation_xy(sx, sy, ex, ey, world: WorldArrays):
     slots = circle_slots(sx, sy, ex, ey, world)
     return jnp.stack(slots) if slots else jnp.zeros((0,) + sx.shape, sx.dtype)
 
+
 def polygon_overlap_gap_xy(sx, sy, ex, ey, world: WorldArrays):
     """Largest separating-axis gap between segments and every polygon slot: a lower bound on
     their distance when positive, minus the penetration depth otherwise; +inf for empty slots.
