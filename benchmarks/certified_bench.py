@@ -43,13 +43,13 @@ def main() -> None:
     for name in args.scenarios.split(","):
         problem = jaxarm.load_scenario(name)
         sampled, sampled_time = timed_solve(problem.replace(collision="sampled"), args.restarts)
-        feasible = sampled.restart_best_violation == 0
-        clear = dense_clearance(problem, sampled.restart_best_x) >= 0
+        feasible = sampled.restarts.best_violation == 0
+        clear = dense_clearance(problem, sampled.restarts.best_x) >= 0
         really = feasible & clear
-        best_free = float(np.max(np.where(really, sampled.restart_best_fitness, 0.0)))
+        best_free = float(np.max(np.where(really, sampled.restarts.best_fitness, 0.0)))
         certified, certified_time = timed_solve(problem, args.restarts)
-        escaped = certified.restart_best_violation == 0
-        oracle = dense_clearance(problem, certified.restart_best_x[escaped]) >= 0
+        escaped = certified.restarts.best_violation == 0
+        oracle = dense_clearance(problem, certified.restarts.best_x[escaped]) >= 0
         print(f"| {name} | {feasible.sum()} | {really.sum()} | {best_free:.4f} | "
               f"{escaped.mean():.0%} | {certified.best_fitness:.4f} | "
               f"{oracle.sum()}/{escaped.sum()} | {sampled_time:.1f} s / {certified_time:.1f} s |",

@@ -17,7 +17,7 @@ import jax
 import numpy as np
 
 import jaxarm
-from jaxarm.solve import compiled_search
+from jaxarm.restarts import compiled_search
 
 
 def timed(run):
@@ -34,7 +34,9 @@ def main():
     case1 = jaxarm.load_scenario("paper-case-1")
     print(f"jax {jax.__version__} ({jax.default_backend()}, {len(jax.devices())} device(s))")
 
-    run = lambda problem, n, seed=0: jaxarm.solve(problem, "A", n_restarts=n, seed=seed)  # noqa: E731
+    def run(problem, n, seed=0):
+        return jaxarm.solve(problem, "A", n_restarts=n, seed=seed)
+
     sampled = case1.replace(collision="sampled")
     later = {}
     for problem in (sampled, case1):

@@ -74,9 +74,9 @@ def run_jaxarm(problem, constraint, n_seeds):
     began = time.perf_counter()
     jaxarm.solve(problem, "A", n_restarts=1, constraint=constraint, seed=1)
     single = time.perf_counter() - began
-    ok = result.restart_best_violation == 0
-    escape = result.restart_escape_iter[ok]
-    metrics = [path_metrics(problem, x) for x in result.restart_best_x[ok]]
+    ok = result.restarts.best_violation == 0
+    escape = result.restarts.escape_iter[ok]
+    metrics = [path_metrics(problem, x) for x in result.restarts.best_x[ok]]
     return summarise(f"jaxarm PSO A, {constraint}", ok, [per_run],
                      single * (escape + 1) / (N_ITERS + 1),
                      [m[0] for m in metrics], [m[1] for m in metrics])

@@ -84,7 +84,8 @@ def obstacles_cases_2_and_3() -> None:
     case2 = jaxarm.load_scenario("paper-case-2", collision="sampled")
     base = case2.replace(world=jaxarm.World(), capacities=(4, 4, 4))
     free_sets = [s for s in published.CASE_2 if s.feasible]
-    block = np.vstack([a6_array([s for s in published.CASE_2 if not s.feasible]), [[0.0, 0.0, 0.0]]])
+    infeasible = a6_array([s for s in published.CASE_2 if not s.feasible])
+    block = np.vstack([infeasible, [[0.0, 0.0, 0.0]]])
     candidates = reconstruct.circle_candidates(base, a6_array(free_sets), spacing=0.5, gap=0.05,
                                                min_radius=0.25, n_points=base.n_samples)
     blocks_any = (reconstruct.sweep_distances(base, block, candidates[:, :2], base.n_samples)

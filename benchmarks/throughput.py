@@ -55,7 +55,8 @@ def numpy_fitness(problem: jaxarm.Problem, x: np.ndarray) -> np.ndarray:
     for p in np.nonzero(world.polygon_valid)[0]:
         normals = world.normals[p][world.edge_valid[p]]  # (E, 2)
         a, b = starts @ normals.T, ends @ normals.T  # (B, S, J, E)
-        low, high = world.extent_low[p][world.edge_valid[p]], world.extent_high[p][world.edge_valid[p]]
+        valid = world.edge_valid[p]
+        low, high = world.extent_low[p][valid], world.extent_high[p][valid]
         gap = np.maximum(np.minimum(a, b) - high, low - np.maximum(a, b)).max(-1)
         d = ends - starts
         normal = np.stack([-d[..., 1], d[..., 0]], -1) / np.linalg.norm(d, axis=-1, keepdims=True)
@@ -156,7 +157,8 @@ def main():
         x_one).jaxpr) for mode, p in (("sampled", problem), ("certified", certified))}
     peak = matmul_peak(args.repeats)
 
-    print("\n| batch | jaxarm sampled (paths/s) | jaxarm certified (paths/s) | certified / sampled "
+    print("\n| batch | jaxarm sampled (paths/s) | jaxarm certified (paths/s) "
+          "| certified / sampled "
           "| NumPy (paths/s) | jaxarm / NumPy |")
     print("|---|---|---|---|---|---|")
     batch = 1_000

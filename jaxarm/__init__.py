@@ -5,56 +5,61 @@ Quick start::
     import jaxarm
     problem = jaxarm.load_scenario("paper-case-2")
     jaxarm.fitness(problem, [66.7388, -28.1028, -9.8855])   # 0.1946, the paper's Table 3
+
+The names below are loaded on first use, so ``import jaxarm`` (and the ``jaxarm`` command's
+``--help``) does not import JAX.
 """
 
-from jaxarm.arm import Arm, inverse_kinematics, joint_positions
-from jaxarm.problem import (
-    COLLISION_MODES,
-    Certificate,
-    Evaluation,
-    Problem,
-    certify,
-    coefficients,
-    collides,
-    fitness,
-    joint_path,
-    travelling_distance,
-    violation,
-)
-from jaxarm.path import raise_degree
-from jaxarm.pso import CONSTRAINTS, PRESETS, PSOConfig
-from jaxarm.scenarios import ScenarioError, available as available_scenarios, load_scenario
-from jaxarm.refine import RefineResult, refine
-from jaxarm.solve import Result, solve
-from jaxarm.world import World
+import importlib
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "Arm",
-    "COLLISION_MODES",
-    "CONSTRAINTS",
-    "Certificate",
-    "Evaluation",
-    "PRESETS",
-    "PSOConfig",
-    "Problem",
-    "RefineResult",
-    "Result",
-    "ScenarioError",
-    "World",
-    "available_scenarios",
-    "certify",
-    "coefficients",
-    "collides",
-    "fitness",
-    "inverse_kinematics",
-    "joint_path",
-    "joint_positions",
-    "load_scenario",
-    "raise_degree",
-    "refine",
-    "solve",
-    "travelling_distance",
-    "violation",
-]
+# public name -> the module that defines it
+_EXPORTS = {
+    "Arm": "jaxarm.arm",
+    "inverse_kinematics": "jaxarm.arm",
+    "joint_positions": "jaxarm.arm",
+    "COLLISION_MODES": "jaxarm.choices",
+    "CONSTRAINTS": "jaxarm.choices",
+    "Certificate": "jaxarm.problem",
+    "Evaluation": "jaxarm.problem",
+    "Problem": "jaxarm.problem",
+    "certify": "jaxarm.problem",
+    "coefficients": "jaxarm.problem",
+    "collides": "jaxarm.problem",
+    "fitness": "jaxarm.problem",
+    "joint_path": "jaxarm.problem",
+    "travelling_distance": "jaxarm.problem",
+    "violation": "jaxarm.problem",
+    "raise_degree": "jaxarm.path",
+    "PRESETS": "jaxarm.pso",
+    "PSOConfig": "jaxarm.pso",
+    "ScenarioError": "jaxarm.scenarios",
+    "available_scenarios": "jaxarm.scenarios",
+    "load_scenario": "jaxarm.scenarios",
+    "RefineResult": "jaxarm.polish",
+    "refine": "jaxarm.polish",
+    "RestartOutcome": "jaxarm.restarts",
+    "Result": "jaxarm.search",
+    "solve": "jaxarm.search",
+    "Study": "jaxarm.study",
+    "Variant": "jaxarm.study",
+    "escape_study": "jaxarm.study",
+    "World": "jaxarm.world",
+}
+_RENAMED = {"available_scenarios": "available"}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'jaxarm' has no attribute {name!r}")
+    module = importlib.import_module(_EXPORTS[name])
+    value = getattr(module, _RENAMED.get(name, name))
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from jaxarm.choices import CONSTRAINTS, one_of
+
 
 def finite_vector(field: str, value, length: int | None = None) -> np.ndarray:
     """``value`` as a 1-D float64 array of finite numbers.
@@ -49,3 +51,20 @@ def positive_int(field: str, value, minimum: int = 1) -> int:
     if value < minimum:
         raise ValueError(f"{field} must be >= {minimum}, got {value!r}")
     return int(value)
+
+
+def check_seed(value) -> int:
+    """``value`` as an int in [0, 2**31) (a JAX int32 key seed), or a ValueError."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not (
+        0 <= value < 2**31
+    ):
+        raise ValueError(f"seed must be an integer in [0, 2**31), got {value!r}")
+    return int(value)
+
+
+def check_search(*, n_particles, n_iters, seed: int, constraint: str) -> None:
+    """The arguments every search shares (``solve`` and studies), or a ValueError naming one."""
+    positive_int("n_particles", n_particles)
+    positive_int("n_iters", n_iters)
+    check_seed(seed)
+    one_of("constraint", constraint, CONSTRAINTS)

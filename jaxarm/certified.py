@@ -68,7 +68,6 @@ import numpy as np
 
 from jaxarm import collision as collision_lib
 from jaxarm import path
-from jaxarm.arm import link_endpoints
 
 MAX_LEVELS = 22  # halvings of a sample window; offsets stay exact integers in float32
 LANES = 1024  # paths bisected at once

@@ -11,6 +11,8 @@ import json
 import pathlib
 import sys
 
+from jaxarm.choices import COLLISION_MODES, CONSTRAINTS, PRESET_NAMES
+
 EXIT_ERROR = 2
 
 
@@ -33,12 +35,12 @@ def _degrees(text: str) -> tuple[int, ...]:
 
 def _add_search_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", help="a shipped scenario name or a path to a .toml file")
-    parser.add_argument("--constraint", default="death", choices=["death", "feasibility"],
+    parser.add_argument("--constraint", default="death", choices=CONSTRAINTS,
                         help="constraint handling (default: death, the paper's)")
     parser.add_argument("--particles", type=_positive, default=20, help="swarm size (20)")
     parser.add_argument("--iters", type=_positive, default=100, help="PSO iterations (100)")
     parser.add_argument("--seed", type=int, default=0, help="base seed (0)")
-    parser.add_argument("--collision", choices=["sampled", "certified"],
+    parser.add_argument("--collision", choices=COLLISION_MODES,
                         help="collision check (default: the scenario's, else certified; "
                              "sampled is the paper's check at the samples only)")
     parser.add_argument("--margin", type=float,
@@ -61,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     solve = commands.add_parser("solve", help="search one scenario and print the best path",
                                 description="Run PSO restarts on a scenario; print a summary.")
     _add_search_options(solve)
-    solve.add_argument("--method", default="A", choices=["A", "B", "C"],
+    solve.add_argument("--method", default="A", choices=PRESET_NAMES,
                        help="the paper's preset (A)")
     solve.add_argument("--restarts", type=_positive, default=1, help="independent swarms (1)")
     solve.add_argument("--json", type=pathlib.Path, help="write the result as JSON")
@@ -122,7 +124,7 @@ def _scenarios(args) -> None:
 
 def _solve(args) -> None:
     from jaxarm import plot
-    from jaxarm.solve import solve
+    from jaxarm.search import solve
 
     problem = _load(args)
     result = solve(problem, args.method, n_particles=args.particles, n_iters=args.iters,
@@ -131,16 +133,7 @@ def _solve(args) -> None:
           f"{args.iters} iterations")
     print(result.summary())
     if args.json:
-        args.json.write_text(json.dumps({
-            "scenario": problem.name, "method": result.method, "constraint": result.constraint,
-            "collision": result.collision, "seed": result.seed,
-            "best_x": result.best_x.tolist(), "best_fitness": result.best_fitness,
-            "feasible": result.feasible, "certified": result.certified,
-            "escape_iter": result.escape_iter, "history": result.history.tolist(),
-            "restart_escape_iter": result.restart_escape_iter.tolist(),
-            "restart_best_fitness": result.restart_best_fitness.tolist(),
-            "seconds": result.seconds,
-        }, indent=2))
+        args.json.write_text(json.dumps({"scenario": problem.name, **result.to_dict()}, indent=2))
         print(f"wrote {args.json}")
     if args.plot:
         plot.plot_motion(problem, result.best_x).savefig(args.plot, dpi=110)

@@ -106,7 +106,8 @@ def sampled_fold(lengths, world, x, n_samples: int, margin=0.0,
 
 
 def reach_matrix(lengths):
-    """``R[j, k] = l_j + ... + l_k`` for j <= k, else 0: how far joint j-1 is from link k's far end.
+    """``R[j, k] = l_j + ... + l_k`` for j <= k, else 0: how far joint j-1 can be from link k's
+    far end.
 
     Args:
       lengths: link lengths, shape (n_joints,) (may be traced).

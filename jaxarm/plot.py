@@ -54,7 +54,8 @@ def plot_motion(problem: Problem, x, n_postures: int = 9, ax=None, title: str | 
         ends = index in (0, n_postures - 1)
         ax.plot(posture[:, 0], posture[:, 1], "-o", color=color, lw=2.2 if ends else 1.0,
                 ms=3, alpha=1.0 if ends else 0.6, zorder=3)
-    ax.plot(trace[:, 0], trace[:, 1], "--", color="#d62728", lw=1.2, label="end-effector", zorder=2)
+    ax.plot(trace[:, 0], trace[:, 1], "--", color="#d62728", lw=1.2, label="end-effector",
+            zorder=2)
     ax.plot(0, 0, "ks", ms=7, zorder=4)
     reach = problem.arm.reach
     ax.set_xlim(-reach * 0.6, reach * 1.05)
@@ -106,11 +107,11 @@ def plot_convergence(history, escape_iter, ax=None, title: str = "Escape and evo
 def plot_escape_rates(study, ax=None, title: str | None = None):
     """Escape rate of each method of a ``Study`` with its 95 % Wilson interval."""
     figure, ax = _axes(ax, (5.5, 3.5))
-    labels = [m.method.label for m in study.methods]
+    labels = [m.variant.label for m in study.methods]
     rates = np.array([m.escape_rate() for m in study.methods])
     intervals = np.array([m.escape_interval() for m in study.methods])
     errors = np.abs(intervals.T - rates)
-    colors = ["#2ca02c" if m.method.constraint == "feasibility" else "#1f77b4"
+    colors = ["#2ca02c" if m.variant.constraint == "feasibility" else "#1f77b4"
               for m in study.methods]
     ax.bar(labels, rates, yerr=errors, capsize=4, color=colors)
     ax.set_ylim(0, 1.05)
@@ -125,7 +126,7 @@ def plot_escape_curves(study, ax=None, title: str | None = None):
     figure, ax = _axes(ax, (5.5, 3.5))
     for method in study.methods:
         ax.step(np.arange(study.n_iters + 1), method.escape_curve(), where="post",
-                label=method.method.label)
+                label=method.variant.label)
     ax.set_ylim(0, 1.02)
     ax.set_xlabel("iteration")
     ax.set_ylabel("fraction escaped")

@@ -26,8 +26,8 @@ from jaxarm._validate import finite_scalar, finite_vector, positive_int
 from jaxarm import world as world_lib
 from jaxarm.arm import Arm, link_endpoints
 from jaxarm.world import World, WorldArrays
+from jaxarm.choices import COLLISION_MODES, one_of
 
-COLLISION_MODES = ("sampled", "certified")
 
 
 class ProblemSpec(NamedTuple):
@@ -114,8 +114,7 @@ class Problem:
         n_samples = positive_int("n_samples", self.n_samples, minimum=3)
         if n_samples % 2 == 0:
             raise ValueError(f"n_samples must be odd for Simpson's rule, got {n_samples}")
-        if self.collision not in COLLISION_MODES:
-            raise ValueError(f"collision must be one of {COLLISION_MODES}, got {self.collision!r}")
+        one_of("collision", self.collision, COLLISION_MODES)
         set_field("margin", finite_scalar("margin", self.margin))
         if self.margin < 0:
             raise ValueError(f"margin must be >= 0 (cm), got {self.margin!r}")

@@ -37,9 +37,27 @@ from typing import Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 
-VELOCITY_RULES = ("original", "inertia", "constriction")
-TIE_BREAKS = ("first", "random")
-BETA_MODES = ("dimension", "particle")
+from jaxarm.choices import (BETA_MODES, CONSTRAINTS, PRESET_NAMES, TIE_BREAKS, VELOCITY_RULES,
+                            one_of)
+
+
+class PSOParams(NamedTuple):
+    """The numeric part of a PSO variant: data under jit, so every preset shares one program."""
+
+    constriction: jax.Array  # shape=(), chi (1 unless the constriction rule)
+    inertia_start: jax.Array  # shape=(), omega at t = 0 (1 for the original rule)
+    inertia_end: jax.Array  # shape=(), omega at t = n_iters (1 for the original rule)
+    cognitive_coeff: jax.Array  # shape=(), phi1
+    social_coeff: jax.Array  # shape=(), phi2
+    init_velocity: jax.Array  # shape=(), initial speed as a fraction of the init range
+    velocity_clamp: jax.Array  # shape=(), clamp as a fraction of the init range (inf: none)
+
+
+class SwarmRules(NamedTuple):
+    """The static part of a PSO variant: what changes the compiled program."""
+
+    tie_break: str  # "first" or "random"
+    beta: str  # "dimension" or "particle"
 
 
 class PSOConfig(NamedTuple):
@@ -71,13 +89,9 @@ class PSOConfig(NamedTuple):
 
     def validate(self) -> "PSOConfig":
         """Return self, or raise ValueError naming the bad field and value."""
-        if self.velocity_rule not in VELOCITY_RULES:
-            raise ValueError(f"velocity_rule must be one of {VELOCITY_RULES}, "
-                             f"got {self.velocity_rule!r}")
-        if self.tie_break not in TIE_BREAKS:
-            raise ValueError(f"tie_break must be one of {TIE_BREAKS}, got {self.tie_break!r}")
-        if self.beta not in BETA_MODES:
-            raise ValueError(f"beta must be one of {BETA_MODES}, got {self.beta!r}")
+        one_of("velocity_rule", self.velocity_rule, VELOCITY_RULES)
+        one_of("tie_break", self.tie_break, TIE_BREAKS)
+        one_of("beta", self.beta, BETA_MODES)
         for name in ("cognitive_coeff", "social_coeff", "inertia_start", "inertia_end",
                      "init_velocity"):
             value = getattr(self, name)
@@ -94,34 +108,33 @@ class PSOConfig(NamedTuple):
             )
         return self
 
-    def numbers(self) -> jnp.ndarray:
-        """The numeric part as one array (traced under jit, so presets share a program).
-
-        Returns:
-          Array of shape (7,): chi, omega start, omega end, phi1, phi2, initial velocity
-          fraction, clamp fraction (inf for none).
-        """
+    def params(self) -> PSOParams:
+        """The numeric part, as scalars of JAX's default float type."""
         original = self.velocity_rule == "original"
-        return jnp.array([
-            self.constriction,
-            1.0 if original else self.inertia_start,
-            1.0 if original else self.inertia_end,
-            self.cognitive_coeff,
-            self.social_coeff,
-            self.init_velocity,
-            math.inf if self.velocity_clamp is None else self.velocity_clamp,
-        ])
+        values = PSOParams(
+            constriction=self.constriction,
+            inertia_start=1.0 if original else self.inertia_start,
+            inertia_end=1.0 if original else self.inertia_end,
+            cognitive_coeff=self.cognitive_coeff,
+            social_coeff=self.social_coeff,
+            init_velocity=self.init_velocity,
+            velocity_clamp=math.inf if self.velocity_clamp is None else self.velocity_clamp,
+        )
+        return PSOParams(*(jnp.asarray(v, dtype=jnp.result_type(float)) for v in values))
 
-    def structure(self) -> tuple[str, str]:
-        """The static part: what changes the compiled program."""
-        return self.tie_break, self.beta
+    def rules(self) -> SwarmRules:
+        """The static part."""
+        return SwarmRules(tie_break=self.tie_break, beta=self.beta)
 
 
 # The paper's Table 2 presets.
 PRESETS = {
-    "A": PSOConfig("inertia", 1.5, 1.5, 1.0, 0.0),
-    "B": PSOConfig("inertia", 0.5, 0.5, 1.0, 0.0),
-    "C": PSOConfig("constriction", 3.0, 2.0, 1.0, 1.0),
+    "A": PSOConfig(velocity_rule="inertia", cognitive_coeff=1.5, social_coeff=1.5,
+                   inertia_start=1.0, inertia_end=0.0),
+    "B": PSOConfig(velocity_rule="inertia", cognitive_coeff=0.5, social_coeff=0.5,
+                   inertia_start=1.0, inertia_end=0.0),
+    "C": PSOConfig(velocity_rule="constriction", cognitive_coeff=3.0, social_coeff=2.0,
+                   inertia_start=1.0, inertia_end=1.0),
 }
 
 
@@ -129,9 +142,9 @@ def resolve(method: str | PSOConfig) -> PSOConfig:
     """A preset name ("A", "B", "C") or a ``PSOConfig``, validated."""
     if isinstance(method, PSOConfig):
         return method.validate()
-    if method in PRESETS:
+    if isinstance(method, str) and method in PRESETS:
         return PRESETS[method]
-    raise ValueError(f"method must be one of {sorted(PRESETS)} or a PSOConfig, got {method!r}")
+    raise ValueError(f"method must be one of {PRESET_NAMES} or a PSOConfig, got {method!r}")
 
 
 class SwarmState(NamedTuple):
@@ -148,9 +161,10 @@ class SwarmState(NamedTuple):
 
 
 class StepInfo(NamedTuple):
-    """Per-iteration diagnostics (not part of the state)."""
+    """Per-iteration diagnostics (not part of the state): what a restart loop records."""
 
-    global_fitness: jax.Array  # shape=(), fitness of the global best
+    global_position: jax.Array  # shape=(n_dims,), the global best
+    global_fitness: jax.Array  # shape=(), its fitness
     global_score: jax.Array  # shape=(), its score
     n_feasible: jax.Array  # shape=(), int32: feasible particles at this iteration
 
@@ -166,121 +180,128 @@ class Scored(NamedTuple):
 ScoreFn = Callable[[jax.Array], Scored]
 
 
+class Swarm(NamedTuple):
+    """An optimiser as a pair of pure functions, closed over its configuration.
+
+    ``init(key) -> (state, info)`` and ``step(key, state) -> (state, info)``; any optimiser
+    with this pair and a ``StepInfo`` runs in ``restarts.run_restart``.
+    """
+
+    init: Callable[[jax.Array], tuple[SwarmState, StepInfo]]
+    step: Callable[[jax.Array, SwarmState], tuple[SwarmState, StepInfo]]
+
+
+def swarm(params: PSOParams, rules: SwarmRules, score_fn: ScoreFn, low, high, *,
+          n_particles: int, n_iters: int, init_particles=None) -> Swarm:
+    """PSO over the box [low, high] as an ``(init, step)`` pair (paper eqs. 13-16).
+
+    Args:
+      params, rules: ``PSOConfig.params()`` (traced) and ``PSOConfig.rules()`` (static).
+      score_fn: maps positions (n_particles, n_dims) to ``Scored``.
+      low, high: the initial range, shape (n_dims,).
+      n_particles: swarm size (static).
+      n_iters: total number of updates, for the inertia schedule (static).
+      init_particles: optional given particles, shape (n_given, n_dims), n_given <=
+        n_particles; they replace the first random ones (paper Table 6).
+
+    Returns:
+      ``Swarm``; ``init`` gives iteration 0, each ``step`` one synchronous update.
+
+    Example:
+      >>> sphere = lambda x: Scored(-(x ** 2).sum(-1), -(x ** 2).sum(-1), x[:, 0] > 0)
+      >>> config = PRESETS["A"]
+      >>> pair = swarm(config.params(), config.rules(), sphere, -jnp.ones(2), jnp.ones(2),
+      ...              n_particles=5, n_iters=10)
+      >>> state, info = pair.init(jax.random.key(0))
+      >>> state, info = pair.step(jax.random.key(1), state)
+      >>> int(state.iteration)
+      1
+    """
+    def init(key) -> tuple[SwarmState, StepInfo]:
+        position_key, velocity_key, tie_key = jax.random.split(key, 3)
+        span = high - low
+        position = low + span * jax.random.uniform(position_key, (n_particles, low.shape[-1]),
+                                                   dtype=low.dtype)
+        if init_particles is not None:
+            position = position.at[: init_particles.shape[0]].set(
+                init_particles.astype(low.dtype))
+        velocity = params.init_velocity * span * jax.random.uniform(
+            velocity_key, position.shape, dtype=low.dtype, minval=-1.0, maxval=1.0
+        )
+        scored = _sanitise(score_fn(position))
+        state = SwarmState(
+            position=position,
+            velocity=velocity,
+            best_position=position,
+            best_score=scored.score,
+            best_fitness=scored.fitness,
+            global_index=_choose_global(tie_key, scored.score, rules.tie_break),
+            iteration=jnp.zeros((), jnp.int32),
+            escape_iter=jnp.where(scored.feasible.any(), 0, -1).astype(jnp.int32),
+        )
+        return state, _info(state, scored)
+
+    def step(key, state: SwarmState) -> tuple[SwarmState, StepInfo]:
+        beta_key, tie_key = jax.random.split(key)
+        shape = state.position.shape
+        beta_shape = shape if rules.beta == "dimension" else shape[:1] + (1,)
+        beta1, beta2 = jax.random.uniform(beta_key, (2,) + beta_shape, dtype=state.position.dtype)
+        iteration = state.iteration + 1
+        omega = (params.inertia_start
+                 + (params.inertia_end - params.inertia_start) * iteration / n_iters)
+        global_position = state.best_position[state.global_index]
+        velocity = params.constriction * (
+            omega * state.velocity
+            + params.cognitive_coeff * beta1 * (state.best_position - state.position)
+            + params.social_coeff * beta2 * (global_position - state.position)
+        )
+        limit = params.velocity_clamp * (high - low)
+        velocity = jnp.clip(velocity, -limit, limit).astype(state.position.dtype)
+        position = state.position + velocity
+        scored = _sanitise(score_fn(position))
+        improved = scored.score > state.best_score
+        best_score = jnp.where(improved, scored.score, state.best_score)
+        escaped_now = (state.escape_iter < 0) & scored.feasible.any()
+        new_state = SwarmState(
+            position=position,
+            velocity=velocity,
+            best_position=jnp.where(improved[:, None], position, state.best_position),
+            best_score=best_score,
+            best_fitness=jnp.where(improved, scored.fitness, state.best_fitness),
+            global_index=_choose_global(tie_key, best_score, rules.tie_break),
+            iteration=iteration,
+            escape_iter=jnp.where(escaped_now, iteration, state.escape_iter),
+        )
+        return new_state, _info(new_state, scored)
+
+    return Swarm(init=init, step=step)
+
+
 def _choose_global(key, best_score, tie_break: str):
-    top = best_score.max()
     if tie_break == "first":
         return jnp.argmax(best_score).astype(jnp.int32)
     noise = jax.random.uniform(key, best_score.shape)
-    return jnp.argmax(jnp.where(best_score == top, noise, -1.0)).astype(jnp.int32)
+    return jnp.argmax(jnp.where(best_score == best_score.max(), noise, -1.0)).astype(jnp.int32)
 
 
 def _sanitise(scored: Scored) -> Scored:
     return scored._replace(score=jnp.where(jnp.isfinite(scored.score), scored.score, -jnp.inf))
 
 
-def init(key, score_fn: ScoreFn, numbers, structure, low, high, n_particles: int,
-         init_particles=None) -> tuple[SwarmState, StepInfo]:
-    """A random swarm in the box [low, high], evaluated.
-
-    Args:
-      key: PRNG key.
-      score_fn: maps positions (n_particles, n_dims) to ``Scored``.
-      numbers, structure: ``PSOConfig.numbers()`` and ``PSOConfig.structure()``.
-      low, high: the initial range, shape (n_dims,).
-      n_particles: swarm size (static).
-      init_particles: optional given particles, shape (n_given, n_dims), n_given <=
-        n_particles; they replace the first random ones (paper Table 6).
-
-    Returns:
-      The state (iteration 0) and its info.
-    """
-    tie_break, _ = structure
-    position_key, velocity_key, tie_key = jax.random.split(key, 3)
-    span = high - low
-    position = low + span * jax.random.uniform(position_key, (n_particles, low.shape[-1]),
-                                               dtype=low.dtype)
-    if init_particles is not None:
-        position = position.at[: init_particles.shape[0]].set(init_particles.astype(low.dtype))
-    velocity = numbers[5] * span * jax.random.uniform(
-        velocity_key, position.shape, dtype=low.dtype, minval=-1.0, maxval=1.0
-    )
-    scored = _sanitise(score_fn(position))
-    global_index = _choose_global(tie_key, scored.score, tie_break)
-    any_feasible = scored.feasible.any()
-    state = SwarmState(
-        position=position,
-        velocity=velocity,
-        best_position=position,
-        best_score=scored.score,
-        best_fitness=scored.fitness,
-        global_index=global_index,
-        iteration=jnp.zeros((), jnp.int32),
-        escape_iter=jnp.where(any_feasible, 0, -1).astype(jnp.int32),
-    )
-    return state, _info(state, scored)
-
-
 def _info(state: SwarmState, scored: Scored) -> StepInfo:
     return StepInfo(
+        global_position=state.best_position[state.global_index],
         global_fitness=state.best_fitness[state.global_index],
         global_score=state.best_score[state.global_index],
         n_feasible=scored.feasible.sum().astype(jnp.int32),
     )
 
 
-def step(key, state: SwarmState, score_fn: ScoreFn, numbers, structure, low, high,
-         n_iters: int) -> tuple[SwarmState, StepInfo]:
-    """One synchronous PSO update (paper eqs. 13-16) and evaluation.
-
-    Args:
-      key: PRNG key for this update.
-      state: the swarm.
-      score_fn, numbers, structure, low, high: as for ``init``.
-      n_iters: total number of updates, for the inertia schedule (static).
-
-    Returns:
-      The new state and its info.
-    """
-    tie_break, beta_mode = structure
-    chi, omega_start, omega_end, phi1, phi2, _, clamp = (numbers[i] for i in range(7))
-    beta_key, tie_key = jax.random.split(key)
-    beta_shape = state.position.shape if beta_mode == "dimension" else state.position.shape[:1] + (1,)
-    beta1, beta2 = jax.random.uniform(beta_key, (2,) + beta_shape, dtype=state.position.dtype)
-    iteration = state.iteration + 1
-    omega = omega_start + (omega_end - omega_start) * iteration / n_iters
-    global_position = state.best_position[state.global_index]
-    velocity = chi * (
-        omega * state.velocity
-        + phi1 * beta1 * (state.best_position - state.position)
-        + phi2 * beta2 * (global_position - state.position)
-    )
-    limit = clamp * (high - low)
-    velocity = jnp.clip(velocity, -limit, limit).astype(state.position.dtype)
-    position = state.position + velocity
-    scored = _sanitise(score_fn(position))
-    improved = scored.score > state.best_score
-    best_position = jnp.where(improved[:, None], position, state.best_position)
-    best_score = jnp.where(improved, scored.score, state.best_score)
-    best_fitness = jnp.where(improved, scored.fitness, state.best_fitness)
-    escaped_now = (state.escape_iter < 0) & scored.feasible.any()
-    new_state = SwarmState(
-        position=position,
-        velocity=velocity,
-        best_position=best_position,
-        best_score=best_score,
-        best_fitness=best_fitness,
-        global_index=_choose_global(tie_key, best_score, tie_break),
-        iteration=iteration,
-        escape_iter=jnp.where(escaped_now, iteration, state.escape_iter),
-    )
-    return new_state, _info(new_state, scored)
+ConstraintRule = Callable[[jax.Array, jax.Array], Scored]
 
 
-CONSTRAINTS = ("death", "feasibility")
-
-
-def constraint_score(constraint: str, fitness, violation) -> Scored:
-    """Rank paths under a constraint-handling rule.
+def constraint_rule(constraint: str) -> ConstraintRule:
+    """How paths are ranked under a constraint-handling rule: ``(fitness, violation) -> Scored``.
 
     - ``"death"`` (the paper's death penalty): score = fitness, 0 for any colliding path, so an
       all-colliding swarm has no gradient of information at all.
@@ -288,17 +309,19 @@ def constraint_score(constraint: str, fitness, violation) -> Scored:
       among feasible paths higher fitness wins; among infeasible ones, less violation wins.
       As one number: ``fitness`` if feasible, else ``-violation``.
 
-    Args:
-      fitness, violation: shape (n,).
+    The returned function takes fitness and violation of shape (n,) and returns ``Scored``
+    with arrays of shape (n,).
 
-    Returns:
-      ``Scored`` with arrays of shape (n,).
+    Example:
+      >>> rule = constraint_rule("feasibility")
+      >>> rule(jnp.array([0.2, 0.0]), jnp.array([0.0, 3.0])).score.tolist()
+      [0.2, -3.0]
     """
-    feasible = violation == 0
-    if constraint == "death":
-        score = fitness
-    elif constraint == "feasibility":
-        score = jnp.where(feasible, fitness, -violation)
-    else:
-        raise ValueError(f"constraint must be one of {CONSTRAINTS}, got {constraint!r}")
-    return Scored(score=score, fitness=fitness, feasible=feasible)
+    one_of("constraint", constraint, CONSTRAINTS)
+
+    def rule(fitness, violation) -> Scored:
+        feasible = violation == 0
+        score = fitness if constraint == "death" else jnp.where(feasible, fitness, -violation)
+        return Scored(score=score, fitness=fitness, feasible=feasible)
+
+    return rule

@@ -18,8 +18,8 @@ from matplotlib.figure import Figure
 
 from jaxarm import plot, published, reconstruct, scenarios, study
 from jaxarm.problem import certify, fitness
-from jaxarm.refine import refine
-from jaxarm.solve import solve
+from jaxarm.polish import refine
+from jaxarm.search import solve
 
 def _vector(x, digits=4) -> str:
     return "[" + ", ".join(f"{v:.{digits}f}" for v in np.asarray(x)) + "]"
@@ -113,12 +113,13 @@ def _table_2(report: _Report, case1_study) -> None:
     report.add(
         "## Table 2: escaping and evolving, 7 runs x A, B, C on case 1", "",
         "Runs 1-7 are seeds 0-6 of the study below. Each cell: *Escaping* (iteration, fitness) "
-        "and the global best at escape; *Evolving* (100, fitness) and the final best; or fail.", "",
+        "and the global best at escape; *Evolving* (100, fitness) and the final best; or fail.",
+        "",
         "| PSO | " + " | ".join(f"Run {i + 1}" for i in range(7)) + " | escaped (paper) |",
         "|---|" + "---|" * 8,
     )
     for label in "ABC":
-        method = case1_study[label]
+        method = case1_study[label].outcome
         cells = []
         for run in range(7):
             escape = int(method.escape_iter[run])
@@ -176,7 +177,9 @@ def _reconstruction_section(report: _Report, case1, case2, case1_study) -> None:
                    f"[{paper_low:.0%}, {paper_high:.0%}] |")
     verdicts = reconstruct.label_agreement(case2, published.CASE_2)
     report.add(
-        "", f"Case II, every set the paper evaluated (Tables 3-6): {sum(v.agrees for v in verdicts)}"
+        "",
+        "Case II, every set the paper evaluated (Tables 3-6): "
+        f"{sum(v.agrees for v in verdicts)}"
         f" of {len(verdicts)} verdicts agree.", "",
         "| source | a6 | paper fitness | ours | paper | ours |", "|---|---|---|---|---|---|",
         *[f"| {v.published.source} | {_vector(v.published.a6)} | {v.published.fitness:g} | "
@@ -204,13 +207,13 @@ def _escape_section(report: _Report, case1, case1_study) -> None:
                   "Escape rates on case 1")
     report.figure(plot.plot_escape_curves(case1_study), "case1_escape_curves.png",
                   "Fraction escaped by iteration")
-    method = case1_study["A"]
-    shown = slice(0, min(60, method.n_seeds))
+    method = case1_study["A"].outcome
+    shown = slice(0, min(60, len(method.escape_iter)))
     report.figure(plot.plot_convergence(method.history[shown], method.escape_iter[shown],
                                         title="Case 1, preset A, death penalty (paper Fig. 12)"),
                   "case1_convergence.png", "Escape and evolution, preset A")
-    best = int(np.argmax(case1_study["A:feasibility"].best_fitness))
-    x = case1_study["A:feasibility"].best_x[best]
+    rules = case1_study["A:feasibility"].outcome
+    x = rules.best_x[rules.best_restart()]
     report.add(f"Best path found on case 1: a6 = {_vector(x)}, fitness "
                f"{float(fitness(case1, x)):.4f}.", "")
     report.figure(plot.plot_motion(case1, x, title="Case 1: best path (paper Fig. 11)"),
@@ -299,8 +302,9 @@ def _suite(report: _Report, names: list[str], n_seeds: int, progress) -> None:
         for method in result.methods:
             low, high = method.escape_interval()
             cells.append(f"{method.escape_rate():.0%} [{low:.0%}, {high:.0%}]")
-        best = max(float(m.best_fitness.max()) for m in result.methods)
-        escaped = result.methods[1].best_x[result.methods[1].best_fitness > 0]
+        best = max(float(m.outcome.best_fitness.max()) for m in result.methods)
+        rules = result.methods[1].outcome
+        escaped = rules.best_x[rules.feasible]
         proved = int(np.sum(certify(problem, escaped).free)) if len(escaped) else 0
         report.add(f"| {name} | {problem.n_joints} | {cells[0]} | {cells[1]} | {best:.4f} | "
                    f"{proved}/{len(escaped)} |")
@@ -334,15 +338,15 @@ def compare_degrees_and_refine(problems, degrees=(6, 7, 8), n_restarts: int = 10
             began = time.perf_counter()
             rules = solve(higher, "A", n_restarts=n_restarts, seed=seed, constraint="feasibility")
             pso_seconds = time.perf_counter() - began
-            feasible = rules.restart_best_violation == 0
+            feasible = rules.restarts.feasible
             began = time.perf_counter()
-            polished = refine(higher, rules.restart_best_x[feasible])
+            polished = refine(higher, rules.restarts.best_x[feasible])
             refine_seconds = time.perf_counter() - began
-            pso_fitness = rules.restart_best_fitness[feasible]
+            pso_fitness = rules.restarts.best_fitness[feasible]
             rows.append({
                 "problem": problem.name, "degree": degree, "n_free": higher.n_free,
-                "escape_death": float(np.mean(death.restart_escape_iter >= 0)),
-                "escape_feasibility": float(np.mean(rules.restart_escape_iter >= 0)),
+                "escape_death": float(np.mean(death.restarts.escape_iter >= 0)),
+                "escape_feasibility": float(np.mean(rules.restarts.escape_iter >= 0)),
                 "best_pso": float(pso_fitness.max(initial=0.0)),
                 "best_refined": float(np.max(polished.fitness, initial=0.0)),
                 "median_pso": float(np.median(pso_fitness)) if feasible.any() else 0.0,

@@ -18,9 +18,10 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from jaxarm import pso
-from jaxarm._validate import positive_int
+from jaxarm._validate import check_search, positive_int
+from jaxarm.choices import CONSTRAINTS, one_of
 from jaxarm.problem import Problem, fitness
-from jaxarm.solve import RestartOutcome, method_name, run_restarts
+from jaxarm.restarts import RestartOutcome, run_restarts
 
 Z_95 = 1.959963984540054
 
@@ -41,47 +42,62 @@ def wilson_interval(successes: int, trials: int, z: float = Z_95) -> tuple[float
     return max(0.0, center - half), min(1.0, center + half)
 
 
-class MethodSpec(NamedTuple):
-    """One row of a study: a PSO method under a constraint rule."""
+class Variant(NamedTuple):
+    """One row of a study: a PSO configuration under a constraint rule, and its label."""
 
-    label: str  # e.g. "A", "A:feasibility"
+    label: str  # e.g. "A", "A:feasibility", "custom", "custom-2"
     config: pso.PSOConfig
     constraint: str
 
 
-def parse_method(method, constraint: str) -> MethodSpec:
-    """``"A"``, ``"A:feasibility"`` or a ``PSOConfig`` (with the study's constraint)."""
-    if isinstance(method, str) and ":" in method:
-        name, constraint = method.split(":", 1)
-        config = pso.resolve(name)
-    else:
-        config = pso.resolve(method)
-    if constraint not in pso.CONSTRAINTS:
-        raise ValueError(f"constraint must be one of {pso.CONSTRAINTS}, got {constraint!r}")
-    label = method_name(method.split(":")[0] if isinstance(method, str) else method)
-    return MethodSpec(label if constraint == "death" else f"{label}:{constraint}", config,
-                      constraint)
+def parse_variants(methods: Sequence, constraint: str) -> list[Variant]:
+    """Study rows from ``"A"``, ``"A:feasibility"``, ``PSOConfig``s or ``Variant``s.
+
+    Entries that name no constraint get ``constraint``. A ``PSOConfig`` is labelled "custom",
+    the next ones "custom-2", "custom-3", ...; a ``Variant`` keeps its own label. Labels must
+    be unique.
+    """
+    variants, n_custom = [], 0
+    for method in methods:
+        if isinstance(method, Variant):
+            variant = method._replace(config=pso.resolve(method.config))
+            one_of("constraint", variant.constraint, CONSTRAINTS)
+        elif isinstance(method, str):
+            name, colon, rule = method.partition(":")
+            rule = one_of("constraint", rule if colon else constraint, CONSTRAINTS)
+            label = name if rule == "death" else f"{name}:{rule}"
+            variant = Variant(label, pso.resolve(name), rule)
+        else:
+            config = pso.resolve(method)
+            n_custom += 1
+            name = "custom" if n_custom == 1 else f"custom-{n_custom}"
+            one_of("constraint", constraint, CONSTRAINTS)
+            label = name if constraint == "death" else f"{name}:{constraint}"
+            variant = Variant(label, config, constraint)
+        if any(v.label == variant.label for v in variants):
+            raise ValueError(f"methods must have unique labels, got {variant.label!r} twice")
+        variants.append(variant)
+    if not variants:
+        raise ValueError(f"methods must name at least one method, got {methods!r}")
+    return variants
 
 
 class MethodStudy(NamedTuple):
-    """Per-seed outcomes of one method, and their summaries."""
+    """Per-restart outcomes of one variant over a study's seeds, and their summaries."""
 
-    method: MethodSpec
-    seeds: np.ndarray  # shape=(n_seeds,), the restart index of each row
-    escape_iter: np.ndarray  # shape=(n_seeds,), -1 if never escaped
-    best_fitness: np.ndarray  # shape=(n_seeds,)
-    best_x: np.ndarray  # shape=(n_seeds, n_free)
-    escape_x: np.ndarray  # shape=(n_seeds, n_free), global best at escape, NaN if never
-    history: np.ndarray  # shape=(n_seeds, n_iters + 1)
+    variant: Variant
+    restarts: np.ndarray  # shape=(n_seeds,), the restart index of each row
+    outcome: RestartOutcome  # NumPy arrays with leading axis n_seeds
     seconds: float  # wall time, compilation included
 
     @property
     def n_seeds(self) -> int:
-        return int(self.seeds.shape[0])
+        return int(self.restarts.shape[0])
 
     @property
     def escaped(self) -> np.ndarray:
-        return self.escape_iter >= 0
+        """Shape (n_seeds,), bool: the swarm found a feasible path at some iteration."""
+        return self.outcome.escape_iter >= 0
 
     def escape_rate(self) -> float:
         return float(self.escaped.mean())
@@ -91,23 +107,23 @@ class MethodStudy(NamedTuple):
 
     def escape_curve(self) -> np.ndarray:
         """Fraction of seeds escaped by iteration k, shape (n_iters + 1,)."""
-        n_iters = self.history.shape[1] - 1
-        iters = np.where(self.escaped, self.escape_iter, n_iters + 1)
+        n_iters = self.outcome.history.shape[1] - 1
+        iters = np.where(self.escaped, self.outcome.escape_iter, n_iters + 1)
         return (iters[:, None] <= np.arange(n_iters + 1)).mean(axis=0)
 
     def summary(self) -> dict:
         """Escape rate, 95 % Wilson interval, escape-iteration quartiles, fitness quantiles."""
         low, high = self.escape_interval()
-        escaped_iters = self.escape_iter[self.escaped]
-        feasible_fitness = self.best_fitness[self.best_fitness > 0]
+        escaped_iters = self.outcome.escape_iter[self.escaped]
+        feasible_fitness = self.outcome.best_fitness[self.outcome.feasible]
         quartiles = (np.percentile(escaped_iters, [25, 50, 75]).tolist()
                      if escaped_iters.size else [None] * 3)
         fitness_q = (np.percentile(feasible_fitness, [50, 100]).tolist()
                      if feasible_fitness.size else [None, None])
         return {
-            "method": self.method.label,
-            "velocity_rule": self.method.config.velocity_rule,
-            "constraint": self.method.constraint,
+            "method": self.variant.label,
+            "velocity_rule": self.variant.config.velocity_rule,
+            "constraint": self.variant.constraint,
             "n_seeds": self.n_seeds,
             "escaped": int(self.escaped.sum()),
             "escape_rate": self.escape_rate(),
@@ -132,14 +148,12 @@ class Study(NamedTuple):
     seed: int
     methods: tuple[MethodStudy, ...]
 
-    def __getitem__(self, label):  # study["A"]
-        if isinstance(label, int):
-            return tuple.__getitem__(self, label)
+    def __getitem__(self, label: str) -> MethodStudy:  # study["A"]; fields by name only
         for method in self.methods:
-            if method.method.label == label:
+            if method.variant.label == label:
                 return method
         raise KeyError(f"no method {label!r} in this study; have "
-                       f"{[m.method.label for m in self.methods]}")
+                       f"{[m.variant.label for m in self.methods]}")
 
     def table(self) -> str:
         """Markdown table: escape rate with 95 % CI, escape-iteration quartiles, fitness."""
@@ -181,14 +195,15 @@ class Study(NamedTuple):
             for i in range(m.n_seeds):
                 rows.append({
                     "problem": self.problem_name,
-                    "method": m.method.label,
-                    "constraint": m.method.constraint,
+                    "method": m.variant.label,
+                    "constraint": m.variant.constraint,
                     "seed": self.seed,
-                    "restart": int(m.seeds[i]),
+                    "restart": int(m.restarts[i]),
                     "escaped": bool(m.escaped[i]),
-                    "escape_iter": int(m.escape_iter[i]),
-                    "best_fitness": float(m.best_fitness[i]),
-                    **{f"x{j}": float(v) for j, v in enumerate(m.best_x[i])},
+                    "escape_iter": int(m.outcome.escape_iter[i]),
+                    "best_fitness": float(m.outcome.best_fitness[i]),
+                    "best_violation": float(m.outcome.best_violation[i]),
+                    **{f"x{j}": float(v) for j, v in enumerate(m.outcome.best_x[i])},
                 })
         return rows
 
@@ -209,7 +224,8 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_see
 
     Args:
       problem: the problem.
-      methods: entries "A", "B", "C", "A:feasibility" (method:constraint) or ``PSOConfig``s.
+      methods: entries "A", "B", "C", "A:feasibility" (method:constraint), ``PSOConfig``s or
+        ``Variant``s (see ``parse_variants``); labels must be unique.
       n_seeds: seeds (restarts) per method; the same restart indices for every method.
       n_iters, n_particles: PSO sizes (paper: 100 and 20).
       constraint: the constraint rule for entries that do not name one.
@@ -220,32 +236,25 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_see
     Returns:
       ``Study``.
     """
-    specs = [parse_method(m, constraint) for m in methods]
+    variants = parse_variants(methods, constraint)
+    check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint)
     n_seeds = positive_int("n_seeds", n_seeds)
     chunk_size = positive_int("chunk_size", chunk_size)
     if progress is None:
         progress = sys.stderr.isatty()
     chunks = [(start, min(chunk_size, n_seeds - start)) for start in range(0, n_seeds, chunk_size)]
-    bar = _progress_bar(len(specs) * n_seeds, problem.name, progress)
+    bar = _progress_bar(len(variants) * n_seeds, problem.name, progress)
     results = []
-    for spec in specs:
+    for variant in variants:
         began = time.perf_counter()
         parts = []
         for start, size in chunks:
-            parts.append(run_restarts(problem, spec.config, spec.constraint, n_particles, n_iters,
-                                      seed, start, size))
+            parts.append(run_restarts(problem, variant.config, variant.constraint, n_particles,
+                                      n_iters, seed, start, size))
             bar.update(size)
-        outcome = RestartOutcome(*(np.concatenate(a) for a in zip(*parts)))
-        results.append(MethodStudy(
-            method=spec,
-            seeds=np.arange(n_seeds),
-            escape_iter=outcome.escape_iter,
-            best_fitness=outcome.best_fitness,
-            best_x=outcome.best_x,
-            escape_x=outcome.escape_x,
-            history=outcome.history,
-            seconds=time.perf_counter() - began,
-        ))
+        results.append(MethodStudy(variant=variant, restarts=np.arange(n_seeds),
+                                   outcome=parts[0].concatenate(*parts[1:]),
+                                   seconds=time.perf_counter() - began))
     bar.close()
     return Study(problem.name, problem.collision, n_particles, n_iters, seed, tuple(results))
 

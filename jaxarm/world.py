@@ -65,9 +65,10 @@ class World:
     polygons: tuple = ()
 
     def __post_init__(self):
-        circles = tuple(_check_circle(i, c) for i, c in enumerate(self.circles))
-        boxes = tuple(_check_box(i, b) for i, b in enumerate(self.boxes))
-        polygons = tuple(_check_polygon(i, p) for i, p in enumerate(self.polygons))
+        circles = tuple(check_circle(f"world.circles[{i}]", c) for i, c in enumerate(self.circles))
+        boxes = tuple(check_box(f"world.boxes[{i}]", b) for i, b in enumerate(self.boxes))
+        polygons = tuple(check_polygon(f"world.polygons[{i}]", p)
+                         for i, p in enumerate(self.polygons))
         object.__setattr__(self, "circles", circles)
         object.__setattr__(self, "boxes", boxes)
         object.__setattr__(self, "polygons", polygons)
@@ -164,15 +165,16 @@ def _signed_area(vertices: np.ndarray) -> float:
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
-def _check_circle(index: int, circle) -> tuple[float, float, float]:
-    values = finite_vector(f"world.circles[{index}]", circle, length=3)
+def check_circle(field: str, circle) -> tuple[float, float, float]:
+    """``(x, y, r)`` as floats, or a ValueError naming ``field`` (e.g. ``"world.circles[3]"``)."""
+    values = finite_vector(field, circle, length=3)
     if values[2] <= 0:
-        raise ValueError(f"world.circles[{index}] radius must be > 0, got {float(values[2])!r}")
+        raise ValueError(f"{field} radius must be > 0, got {float(values[2])!r}")
     return tuple(float(v) for v in values)
 
 
-def _check_box(index: int, box) -> tuple[tuple[float, float], tuple[float, float]]:
-    field = f"world.boxes[{index}]"
+def check_box(field: str, box) -> tuple[tuple[float, float], tuple[float, float]]:
+    """``((xmin, ymin), (xmax, ymax))`` as floats, or a ValueError naming ``field``."""
     try:
         low, high = box
     except (TypeError, ValueError):
@@ -184,8 +186,8 @@ def _check_box(index: int, box) -> tuple[tuple[float, float], tuple[float, float
     return (float(low[0]), float(low[1])), (float(high[0]), float(high[1]))
 
 
-def _check_polygon(index: int, polygon) -> tuple[tuple[float, float], ...]:
-    field = f"world.polygons[{index}]"
+def check_polygon(field: str, polygon) -> tuple[tuple[float, float], ...]:
+    """Convex vertices as float pairs, or a ValueError naming ``field``."""
     try:
         vertices = np.asarray(polygon, dtype=np.float64)
     except (TypeError, ValueError):
@@ -350,7 +352,8 @@ def separation_xy(sx, sy, ex, ey, world: WorldArrays):
     """Like ``separation`` for coordinates given separately, each of shape (...); returns
     shape (n_slots, ...)."""
     return jnp.concatenate(
-        [circle_separation_xy(sx, sy, ex, ey, world), polygon_separation_xy(sx, sy, ex, ey, world)],
+        [circle_separation_xy(sx, sy, ex, ey, world),
+         polygon_separation_xy(sx, sy, ex, ey, world)],
         axis=0,
     )
 

@@ -1,4 +1,5 @@
-"""The certified continuous check against an independent dense oracle (shapely, float64)."""
+"""The certified continuous check (``jaxarm.certified``, ``jaxarm.certify``) against an independent
+dense oracle (shapely, float64)."""
 
 import numpy as np
 import pytest
@@ -6,7 +7,7 @@ import pytest
 import jaxarm
 from jaxarm.oracle import dense_clearance
 
-from test_geometry import thin_wall_problem as thin_world_problem  # a 0.2 cm wall, a circle
+from oracles import oracle_path_collides, thin_wall_problem
 
 
 @pytest.mark.slow
@@ -15,7 +16,7 @@ def test_certify_is_sound_and_tight_against_a_dense_oracle(rng):
     certified, motions penetrating by >= 2 tol are found colliding (the issue's targets)."""
     clearances, free, colliding = [], [], []
     for _ in range(300):
-        problem = thin_world_problem(rng)
+        problem = thin_wall_problem(rng)
         x = rng.uniform(-60, 60, (64, problem.n_free))
         sampled = np.asarray(jaxarm.violation(problem.replace(collision="sampled"), x)) == 0
         # Motions free at the 101 samples are the interesting ones; a few others too.
@@ -35,6 +36,33 @@ def test_certify_is_sound_and_tight_against_a_dense_oracle(rng):
     assert colliding[deep].mean() >= 0.99, colliding[deep].mean()
     # The sampled check steps over some of these walls; the certified one must not.
     assert np.sum(deep & ~colliding) <= 0.01 * deep.sum()
+
+
+def test_certified_is_sound_and_not_too_conservative_against_a_dense_check(rng):
+    certified_free = sampled_free = certified_of_dense_free = dense_free = 0
+    missed_by_sampling = 0
+    for _ in range(30):
+        problem = thin_wall_problem(rng).replace(collision="sampled")
+        certified = problem.replace(collision="certified")
+        x = rng.uniform(-60, 60, (200, problem.n_free))
+        sampled_ok = np.asarray(jaxarm.violation(problem, x)) == 0
+        certified_ok = np.asarray(jaxarm.violation(certified, x)) == 0
+        assert not np.any(certified_ok & ~sampled_ok)
+        candidates = np.nonzero(sampled_ok)[0][:10]  # dense checks are the expensive part
+        if candidates.size == 0:
+            continue
+        dense_ok = ~oracle_path_collides(problem, x[candidates], 10_001)
+        # Soundness: nothing certified collides anywhere along the dense check.
+        assert not np.any(certified_ok[candidates] & ~dense_ok)
+        missed_by_sampling += np.sum(~dense_ok)
+        certified_free += certified_ok.sum()
+        sampled_free += sampled_ok.sum()
+        dense_free += dense_ok.sum()
+        certified_of_dense_free += np.sum(certified_ok[candidates] & dense_ok)
+    assert missed_by_sampling > 0, "expected the sampled check to step over some thin walls"
+    assert dense_free > 60
+    # Not so conservative that it rejects most free motions.
+    assert certified_of_dense_free / dense_free > 0.6, (certified_of_dense_free, dense_free)
 
 
 def test_certificate_fields_and_the_papers_free_paths(case2):
@@ -59,7 +87,7 @@ def test_colliding_motions_report_the_penetration_found(case1):
 
 
 def test_certified_verdicts_do_not_depend_on_the_batch(rng):
-    problem = thin_world_problem(rng)
+    problem = thin_wall_problem(rng)
     x = rng.uniform(-60, 60, (40, problem.n_free)).astype(np.float32)
     together = jaxarm.violation(problem, x)
     alone = np.stack([np.asarray(jaxarm.violation(problem, row)) for row in x[:6]])

@@ -92,3 +92,15 @@ def test_travelling_distance_is_the_arc_length_of_each_joint_curve():
         chords = np.sqrt(np.diff(r)[:, None] ** 2 + np.diff(theta, axis=0) ** 2).sum()
         simpson = float(jaxarm.travelling_distance(problem, x))
     assert simpson == pytest.approx(chords, rel=1e-6)
+
+
+@given(degree=st.integers(7, 8), data=st.data())
+def test_raise_degree_keeps_the_same_path(degree, data):
+    problem = jaxarm.load_scenario("paper-case-2")
+    x = np.array(data.draw(st.lists(st.floats(-200, 200), min_size=3, max_size=3)))
+    higher = problem.replace(degree=degree)
+    raised = jaxarm.raise_degree(x, 3, degree)
+    assert raised.shape == (higher.n_free,)
+    r = np.linspace(0, 1, 11)
+    np.testing.assert_allclose(np.asarray(jaxarm.joint_path(higher, raised, r)),
+                               np.asarray(jaxarm.joint_path(problem, x, r)), atol=1e-4)

@@ -141,7 +141,8 @@ def test_colliding_start_names_the_link_and_obstacle():
     world = jaxarm.World(circles=[(100.0, 100.0, 1.0)], boxes=[((25.0, -5.0), (35.0, 5.0))])
     with pytest.raises(ValueError, match=r"start posture .* collides: link 1 overlaps boxes\[0\]"):
         jaxarm.Problem(arm=ARM, start=[0.0, 1.5, 0.0], goal=[1.5, 0.5, 0.5], world=world)
-    with pytest.raises(ValueError, match=r"goal posture .* collides: link 3 overlaps circles\[0\]"):
+    with pytest.raises(ValueError,
+                       match=r"goal posture .* collides: link 3 overlaps circles\[0\]"):
         jaxarm.Problem(arm=ARM, start=[1.5, 0.5, 0.5], goal=[0.0, 0.0, 0.0],
                        world=jaxarm.World(circles=[(75.0, 0.0, 2.0)]))
 

@@ -4,6 +4,7 @@ Schema (units: cm and rad)::
 
     name = "paper-case-1"              # optional, defaults to the file name
     description = "one line"           # optional
+    units = "cm, rad"                  # optional; the only units read (anything else: error)
     [arm]
     lengths = [30.0, 30.0, 20.0]
     [start]                            # joint angles, or a pose solved by inverse kinematics
@@ -32,6 +33,7 @@ import tomllib
 
 from jaxarm.arm import Arm, inverse_kinematics
 from jaxarm.problem import Problem
+from jaxarm import world as world_lib
 from jaxarm.world import World
 
 
@@ -39,6 +41,7 @@ class ScenarioError(ValueError):
     """A scenario that cannot be loaded; the message names the file and the key."""
 
 
+UNITS = "cm, rad"
 _TOP_KEYS = {"name", "description", "units", "arm", "start", "goal", "search", "obstacles"}
 _SEARCH_KEYS = {"degree", "samples", "collision", "init_low", "init_high", "margin",
                 "certify_tol"}
@@ -149,21 +152,24 @@ def _obstacles(entries) -> World:
             raise ScenarioError(f"{where} ({kind}) is missing {missing[0]!r}")
         try:
             if kind == "circle":
-                circles.append((*entry["center"], entry["radius"]))
-                World(circles=[circles[-1]])
+                center = entry["center"]
+                if not isinstance(center, list):
+                    raise ValueError(f"{where}.center must be [x, y], got {center!r}")
+                circles.append(world_lib.check_circle(where, (*center, entry["radius"])))
             elif kind == "box":
-                boxes.append((entry["min"], entry["max"]))
-                World(boxes=[boxes[-1]])
+                boxes.append(world_lib.check_box(where, (entry["min"], entry["max"])))
             else:
-                polygons.append(entry["vertices"])
-                World(polygons=[polygons[-1]])
+                polygons.append(world_lib.check_polygon(where, entry["vertices"]))
         except (ValueError, TypeError) as error:
-            raise ScenarioError(f"{where}: {error}") from None
+            raise ScenarioError(str(error)) from None
     return World(circles=circles, boxes=boxes, polygons=polygons)
 
 
 def _problem(data: dict, default_name: str) -> Problem:
     _unknown(data, _TOP_KEYS, "")
+    if data.get("units", UNITS) != UNITS:
+        raise ScenarioError(f"units must be {UNITS!r} (lengths in cm, angles in rad), "
+                            f"got {data['units']!r}")
     arm_table = _table(data, "arm")
     _unknown(arm_table, {"lengths"}, "in [arm]: ")
     if "lengths" not in arm_table:

@@ -1,4 +1,4 @@
-"""Gradient polish of a feasible path with optax.
+"""Gradient polish of a feasible path with optax (``jaxarm.refine``).
 
 PSO ends near an optimum it cannot sharpen: the best paths hug an obstacle, and 20 particles
 sample that ridge coarsely. ``refine`` descends a smooth surrogate,
@@ -6,11 +6,11 @@ sample that ridge coarsely. ``refine`` descends a smooth surrogate,
     travelling distance + weight * sum over samples and links of tau * softplus((margin - c) / tau)
 
 where c is a lower bound on the signed clearance of a link at a sample (negative inside an
-obstacle; exact for circles, the separating-axis gap for polygons), with any optax optimizer. Steps are only *accepted* into the returned path when the candidate is
-collision-free in the problem's own collision mode (certified if the problem says so) and at
-least as fit as the best so far, so the result is never less fit than the input and never
-collides. The optimizer itself moves freely on the surrogate; the barrier pulls it back out
-of obstacles.
+obstacle; exact for circles, the separating-axis gap for polygons), with any optax optimizer.
+Steps are only *accepted* into the returned path when the candidate is collision-free in the
+problem's own collision mode (certified if the problem says so) and at least as fit as the best
+so far, so the result is never less fit than the input and never collides. The optimizer itself
+moves freely on the surrogate; the barrier pulls it back out of obstacles.
 """
 
 from __future__ import annotations
@@ -59,8 +59,7 @@ def surrogate(spec, arrays, x, barrier_weight, margin, temperature):
 
 
 def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, temperature):
-    objective = lambda z: surrogate(spec, arrays, z, barrier_weight, margin, temperature)  # noqa: E731
-    gradient = jax.grad(objective)
+    gradient = jax.grad(lambda z: surrogate(spec, arrays, z, barrier_weight, margin, temperature))
     start = vmapped_evaluate(spec)(arrays, x)
     feasible = start.violation == 0
 

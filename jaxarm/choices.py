@@ -1,0 +1,19 @@
+"""The names the library accepts, kept free of JAX so the CLI can offer them without loading it.
+
+``pso.PRESETS``, ``pso.constraint_rule`` and ``Problem`` check their arguments against these
+tuples; ``jaxarm.cli`` builds its ``choices=`` from them.
+"""
+
+VELOCITY_RULES = ("original", "inertia", "constriction")
+TIE_BREAKS = ("first", "random")
+BETA_MODES = ("dimension", "particle")
+CONSTRAINTS = ("death", "feasibility")
+COLLISION_MODES = ("sampled", "certified")
+PRESET_NAMES = ("A", "B", "C")  # the paper's Table 2
+
+
+def one_of(field: str, value, options: tuple) -> str:
+    """``value`` if it is one of ``options``, else a ValueError naming ``field`` and the value."""
+    if value not in options:
+        raise ValueError(f"{field} must be one of {options}, got {value!r}")
+    return value

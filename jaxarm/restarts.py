@@ -1,0 +1,158 @@
+"""Independent restarts of a swarm in one compiled program: vmapped, scanned, sharded.
+
+Restarts are vmapped (and sharded over all devices when there are several), iterations run in
+``lax.scan``. Restart i draws everything from ``fold_in(key(seed), i)`` (and iteration t from
+``fold_in`` of that with t), so its result does not depend on how many restarts run beside it or
+how they are chunked. The compiled program is specialised only on sizes and modes
+(``ProblemSpec``, particles, iterations, restarts, the constraint rule and the swarm's rules);
+angles, obstacles, PSO coefficients, the init range and the seed are data, so a new scenario or
+preset reuses it.
+
+``run_restart`` knows nothing about PSO: any optimiser given as a ``pso.Swarm`` pair whose info
+is a ``pso.StepInfo`` runs in the same loop.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm import pso
+from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, vmapped_evaluate
+
+
+class RestartOutcome(NamedTuple):
+    """What each restart ended with (leading axis n_restarts)."""
+
+    best_x: jax.Array  # shape=(n_restarts, n_free), the global best
+    best_fitness: jax.Array  # shape=(n_restarts,), paper eq. 17 fitness of best_x
+    best_violation: jax.Array  # shape=(n_restarts,), 0 iff best_x is collision-free
+    escape_iter: jax.Array  # shape=(n_restarts,), int32, first feasible iteration; -1 if never
+    escape_x: jax.Array  # shape=(n_restarts, n_free), global best at escape; NaN if never
+    history: jax.Array  # shape=(n_restarts, n_iters + 1), global-best fitness per iteration
+
+    @property
+    def feasible(self) -> np.ndarray:
+        """Shape (n_restarts,), bool: the restart's best path is collision-free."""
+        return np.asarray(self.best_violation) == 0
+
+    def best_restart(self) -> int:
+        """Highest fitness among feasible restarts, else least violation; first index on ties."""
+        return int(np.argmax(np.where(self.feasible, self.best_fitness, -self.best_violation)))
+
+    def concatenate(self, *others: "RestartOutcome") -> "RestartOutcome":
+        """This outcome followed by ``others``' restarts, as NumPy arrays."""
+        return RestartOutcome(*(np.concatenate(parts) for parts in zip(self, *others)))
+
+
+def run_restart(key, swarm: pso.Swarm, n_iters: int) -> tuple[jax.Array, ...]:
+    """One restart: ``init`` then ``n_iters`` steps, tracking escape and the best fitness.
+
+    Args:
+      key: this restart's key; ``init`` gets ``fold_in(key, 0)``, step t ``fold_in(key, t)``.
+      swarm: the optimiser.
+      n_iters: updates (static).
+
+    Returns:
+      best_x (n_free,), escape_iter (), escape_x (n_free,), history (n_iters + 1,).
+    """
+    state, info = swarm.init(jax.random.fold_in(key, 0))
+    nan = jnp.full(info.global_position.shape, jnp.nan, info.global_position.dtype)
+    escaped = info.n_feasible > 0
+    escape_iter = jnp.where(escaped, 0, -1).astype(jnp.int32)
+    escape_x = jnp.where(escaped, info.global_position, nan)
+
+    def body(carry, iteration):
+        state, _, escape_iter, escape_x = carry
+        state, info = swarm.step(jax.random.fold_in(key, iteration), state)
+        escaped_now = (escape_iter < 0) & (info.n_feasible > 0)
+        escape_iter = jnp.where(escaped_now, iteration, escape_iter)
+        escape_x = jnp.where(escaped_now, info.global_position, escape_x)
+        return (state, info.global_position, escape_iter, escape_x), info.global_fitness
+
+    (_, best_x, escape_iter, escape_x), history = jax.lax.scan(
+        body, (state, info.global_position, escape_iter, escape_x), jnp.arange(1, n_iters + 1))
+    return best_x, escape_iter, escape_x, jnp.concatenate([info.global_fitness[None], history])
+
+
+def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOParams,
+                    rules: pso.SwarmRules, low, high, seed, restart_ids, init_particles, *,
+                    n_particles: int, n_iters: int, constraint: str) -> RestartOutcome:
+    """Run the PSO restarts numbered ``restart_ids`` (pure; ``compiled_search`` is its jit).
+
+    Args:
+      spec: static problem part; arrays: its data.
+      params, rules: ``PSOConfig.params()`` and ``.rules()``.
+      low, high: init range, shape (n_free,).
+      seed: int32 scalar.
+      restart_ids: int32, shape (n_restarts,); restart i uses ``fold_in(key(seed), i)``.
+      init_particles: None or shape (n_given, n_free).
+
+    Returns:
+      ``RestartOutcome`` with leading axis n_restarts.
+    """
+    evaluate = vmapped_evaluate(spec)
+    rule = pso.constraint_rule(constraint)
+
+    def score_fn(x):
+        evaluation = evaluate(arrays, x)
+        return rule(evaluation.fitness, evaluation.violation)
+
+    swarm = pso.swarm(params, rules, score_fn, low, high, n_particles=n_particles,
+                      n_iters=n_iters, init_particles=init_particles)
+
+    def one(restart):
+        key = jax.random.fold_in(jax.random.key(seed), restart)
+        best_x, escape_iter, escape_x, history = run_restart(key, swarm, n_iters)
+        final = evaluate(arrays, best_x)
+        return RestartOutcome(best_x, final.fitness, final.violation, escape_iter, escape_x,
+                              history)
+
+    return jax.vmap(one)(restart_ids)
+
+
+compiled_search = jax.jit(
+    search_restarts, static_argnames=("spec", "rules", "n_particles", "n_iters", "constraint")
+)
+
+
+RESTART_BLOCK = 8
+
+
+def restart_ids(first_restart: int, n_restarts: int) -> jax.Array:
+    """Restart numbers ``first .. first + n - 1``, sharded over all devices when there are several.
+
+    The ids are padded to a multiple of 8 per device (the extra restarts are computed and
+    dropped); with d devices they are split along a one-axis mesh, so each device runs its share
+    of the restarts; each restart's result is the same on 1 or d devices. Under multi-host JAX
+    (``jax.distributed.initialize()`` first), ``jax.devices()`` spans every host and the same
+    mesh spreads restarts across them.
+    """
+    devices = jax.devices()
+    # Padding to a multiple of 8 restarts per device keeps every call on the same vectorised
+    # code path: XLA's CPU loops round differently for batches of a few restarts, which would
+    # change the last bits of a restart's fitness with the number of restarts beside it.
+    block = RESTART_BLOCK * len(devices)
+    n_padded = -(-n_restarts // block) * block
+    ids = np.arange(first_restart, first_restart + n_padded, dtype=np.int32)
+    if len(devices) == 1:
+        return jnp.asarray(ids)
+    mesh = jax.sharding.Mesh(np.array(devices), ("restarts",))
+    sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("restarts"))
+    return jax.device_put(ids, sharding)
+
+
+def run_restarts(problem: Problem, config: pso.PSOConfig, constraint: str, n_particles: int,
+                 n_iters: int, seed: int, first_restart: int, n_restarts: int,
+                 init_particles=None) -> RestartOutcome:
+    """The compiled search for restarts ``first_restart ..``, as NumPy arrays."""
+    low, high = (jnp.asarray(b, dtype=jnp.result_type(float)) for b in problem.bounds())
+    outcome = compiled_search(
+        problem.spec, problem.arrays, config.params(), config.rules(), low, high,
+        jnp.int32(seed), restart_ids(first_restart, n_restarts), init_particles,
+        n_particles=n_particles, n_iters=n_iters, constraint=constraint,
+    )
+    return RestartOutcome(*(np.asarray(a)[:n_restarts] for a in outcome))

@@ -1,0 +1,219 @@
+"""``solve``: many independent PSO restarts of one problem, and the ``Result`` they produce."""
+
+from __future__ import annotations
+
+import time
+from typing import NamedTuple
+
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm import pso
+from jaxarm._validate import check_search, positive_int
+from jaxarm.problem import Problem, certify
+from jaxarm.restarts import RestartOutcome, run_restarts
+
+
+class Result(NamedTuple):
+    """What ``solve`` found: every restart, the best one, and how it was produced.
+
+    The best restart's fields are properties (``best_x``, ``best_fitness``, ``feasible``,
+    ``escape_iter``, ``history``); ``restarts`` holds every restart's outcome.
+    """
+
+    restarts: RestartOutcome  # NumPy arrays with leading axis n_restarts
+    best_restart: int  # index of the best restart (``RestartOutcome.best_restart``)
+    certified: bool  # best_x proved free for every r by ``jaxarm.certify``
+    pso_best_fitness: float  # best_fitness before refinement (equal when refine=False)
+    method: str  # preset name or "custom"
+    config: pso.PSOConfig
+    constraint: str
+    collision: str  # the collision mode the search used
+    seed: int
+    seconds: float  # wall time of the call, compilation included
+
+    @property
+    def best_x(self) -> np.ndarray:
+        """Shape (n_free,), the best restart's global best."""
+        return self.restarts.best_x[self.best_restart]
+
+    @property
+    def best_fitness(self) -> float:
+        """Paper eq. 17 fitness of best_x (0 if infeasible)."""
+        return float(self.restarts.best_fitness[self.best_restart])
+
+    @property
+    def feasible(self) -> bool:
+        """best_x is collision-free in the problem's collision mode."""
+        return bool(self.restarts.feasible[self.best_restart])
+
+    @property
+    def escape_iter(self) -> int:
+        """The best restart's escape iteration, -1 if it never escaped."""
+        return int(self.restarts.escape_iter[self.best_restart])
+
+    @property
+    def history(self) -> np.ndarray:
+        """Shape (n_iters + 1,), the best restart's global-best fitness per iteration."""
+        return self.restarts.history[self.best_restart]
+
+    @property
+    def n_restarts(self) -> int:
+        return int(self.restarts.best_fitness.shape[0])
+
+    # Flat names for the per-restart arrays (the documented API before ``restarts`` existed).
+    restart_best_x = property(lambda self: self.restarts.best_x)
+    restart_best_fitness = property(lambda self: self.restarts.best_fitness)
+    restart_best_violation = property(lambda self: self.restarts.best_violation)
+    restart_escape_iter = property(lambda self: self.restarts.escape_iter)
+    restart_escape_x = property(lambda self: self.restarts.escape_x)
+    restart_history = property(lambda self: self.restarts.history)
+
+    def summary(self) -> str:
+        """A few human-readable lines."""
+        escaped = int(np.sum(self.restarts.escape_iter >= 0))
+        return "\n".join([
+            f"method {self.method} ({self.config.velocity_rule}), constraint {self.constraint}, "
+            f"{self.collision} collision check, seed {self.seed}",
+            f"best a   {np.array2string(self.best_x, precision=4, separator=', ')}",
+            f"fitness  {self.best_fitness:.5g}  feasible {self.feasible}  "
+            f"certified {self.certified}",
+            *([f"WARNING  feasible only at the {self.collision} check's samples: the motion is "
+               "not certified collision-free between them"]
+              if self.feasible and not self.certified else []),
+            f"escape   iteration {self.escape_iter} (best restart); "
+            f"{escaped}/{self.n_restarts} restarts escaped",
+            f"time     {self.seconds:.2f} s",
+        ])
+
+    def to_dict(self) -> dict:
+        """Plain lists and numbers, NaN as None (strict JSON); ``Result.from_dict`` reads it back.
+
+        Besides the fields, it carries the best restart's ``best_x``, ``best_fitness``,
+        ``feasible``, ``escape_iter`` and ``history`` for readers who only want the answer.
+        """
+        return {
+            "best_x": self.best_x.tolist(),
+            "best_fitness": self.best_fitness,
+            "feasible": self.feasible,
+            "escape_iter": self.escape_iter,
+            "history": self.history.tolist(),
+            "restarts": {name: _plain(a) for name, a in self.restarts._asdict().items()},
+            "best_restart": self.best_restart,
+            "certified": self.certified,
+            "pso_best_fitness": self.pso_best_fitness,
+            "method": self.method,
+            "config": self.config._asdict(),
+            "constraint": self.constraint,
+            "collision": self.collision,
+            "seed": self.seed,
+            "seconds": self.seconds,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "Result":
+        """The ``Result`` that ``to_dict`` wrote (arrays as float64 / int32, NaN kept)."""
+        integer = {"escape_iter"}
+        restarts = RestartOutcome(**{
+            name: np.asarray(values, dtype=np.int32 if name in integer else np.float64)
+            for name, values in data["restarts"].items()})
+        fields = {name: data[name] for name in cls._fields if name != "restarts"}
+        fields["config"] = pso.PSOConfig(**fields["config"])
+        return cls(restarts=restarts, **fields)
+
+
+def _plain(array) -> list:
+    """Nested lists of Python numbers, NaN as None."""
+    array = np.asarray(array)
+    if array.dtype.kind == "f":
+        return np.where(np.isnan(array), None, array).tolist()
+    return array.tolist()
+
+
+def solve(problem: Problem, method: str | pso.PSOConfig = "A", *, n_particles: int = 20,
+          n_iters: int = 100, n_restarts: int = 1, seed: int = 0, constraint: str = "death",
+          init_particles=None, refine: bool | str = False) -> Result:
+    """Search the problem's free coefficients with PSO, ``n_restarts`` independent swarms at once.
+
+    Restart i is seeded by ``fold_in(key(seed), i)``; its result does not depend on
+    ``n_restarts`` (see ``jaxarm.restarts``).
+
+    Args:
+      problem: the problem.
+      method: "A", "B", "C" (the paper's Table 2 presets) or a ``PSOConfig``.
+      n_particles: swarm size (paper: 20).
+      n_iters: PSO updates (paper: 100); iteration 0 is the initial swarm.
+      n_restarts: independent swarms.
+      seed: integer seed in [0, 2**31).
+      constraint: "death" (paper eq. 17) or "feasibility" (feasibility rules on the violation).
+      init_particles: optional particles, shape (n_given, n_free), put at the start of every
+        restart's initial swarm (paper Table 6).
+      refine: polish with ``jaxarm.refine`` after PSO: False, True (the best restart) or
+        "all" (every feasible restart, then the best is chosen again). Never worse.
+
+    Returns:
+      ``Result``.
+
+    Example:
+      >>> result = jaxarm.solve(jaxarm.load_scenario("paper-case-2"), constraint="feasibility")
+      >>> result.feasible
+      True
+    """
+    began = time.perf_counter()
+    config = pso.resolve(method)
+    check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint)
+    n_restarts = positive_int("n_restarts", n_restarts)
+    if refine not in (False, True, "all"):
+        raise ValueError(f"refine must be False, True or 'all', got {refine!r}")
+    given = _check_init_particles(problem, init_particles, n_particles)
+    outcome = run_restarts(problem, config, constraint, n_particles, n_iters, seed, 0,
+                           n_restarts, given)
+    pso_best = float(outcome.best_fitness[outcome.best_restart()])
+    if refine:
+        outcome = _refined(problem, outcome, every=refine == "all")
+    best = outcome.best_restart()
+    feasible = bool(outcome.feasible[best])
+    certified = feasible and (problem.collision == "certified"
+                              or bool(certify(problem, outcome.best_x[best]).free))
+    return Result(restarts=outcome, best_restart=best, certified=certified,
+                  pso_best_fitness=pso_best, method=method_label(method), config=config,
+                  constraint=constraint, collision=problem.collision, seed=int(seed),
+                  seconds=time.perf_counter() - began)
+
+
+def method_label(method: str | pso.PSOConfig) -> str:
+    """A preset's name, or "custom" for a ``PSOConfig``."""
+    return method if isinstance(method, str) else "custom"
+
+
+def _refined(problem, outcome: RestartOutcome, every: bool) -> RestartOutcome:
+    """The outcome with the best (or every) feasible restart polished by ``refine``."""
+    from jaxarm.polish import refine
+
+    rows = np.arange(len(outcome.best_fitness)) if every else np.array([outcome.best_restart()])
+    rows = rows[outcome.feasible[rows]]
+    if rows.size == 0:
+        return outcome
+    polished = refine(problem, outcome.best_x[rows])
+    # Kept only where strictly fitter than the PSO's own evaluation: the same x evaluated by
+    # another compiled program can differ in the last bit, and "never worse" must hold here.
+    better = polished.fitness > outcome.best_fitness[rows]
+    best_x, best_fitness = outcome.best_x.copy(), outcome.best_fitness.copy()
+    best_x[rows[better]], best_fitness[rows[better]] = polished.x[better], polished.fitness[better]
+    return outcome._replace(best_x=best_x, best_fitness=best_fitness)
+
+
+def _check_init_particles(problem, init_particles, n_particles):
+    if init_particles is None:
+        return None
+    given = np.asarray(init_particles, dtype=np.float64)
+    if given.ndim == 1:
+        given = given[None]
+    if given.ndim != 2 or given.shape[1] != problem.n_free or given.shape[0] > n_particles:
+        raise ValueError(
+            f"init_particles must have shape (n_given <= {n_particles}, {problem.n_free}), "
+            f"got {np.shape(init_particles)}"
+        )
+    if not np.all(np.isfinite(given)):
+        raise ValueError(f"init_particles must be finite, got {init_particles!r}")
+    return jnp.asarray(given, dtype=jnp.result_type(float))

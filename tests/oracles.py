@@ -1,0 +1,93 @@
+"""Independent oracles the tests share: random worlds and shapely checks of segments and paths.
+
+Obstacles are open sets (grazing contact is not a collision), which is shapely's
+``relate_pattern(segment, obstacle, "T********")``: the interiors intersect."""
+
+import numpy as np
+import shapely
+
+import jaxarm
+
+
+CAPACITIES = (4, 8, 8)
+
+
+def random_world(rng) -> jaxarm.World:
+    circles = [(*rng.uniform(-60, 60, 2), rng.uniform(1, 12)) for _ in range(rng.integers(0, 4))]
+    boxes = []
+    for _ in range(rng.integers(0, 4)):
+        low = rng.uniform(-60, 50, 2)
+        boxes.append((tuple(low), tuple(low + rng.uniform(0.5, 25, 2))))
+    polygons = []
+    for _ in range(rng.integers(0, 4)):
+        points = rng.uniform(-15, 15, (rng.integers(3, 9), 2)) + rng.uniform(-50, 50, 2)
+        hull = shapely.MultiPoint(points).convex_hull
+        if hull.geom_type == "Polygon" and hull.area > 1.0:
+            vertices = np.asarray(hull.exterior.coords)[:-1]
+            polygons.append(vertices[::-1] if rng.random() < 0.5 else vertices)
+    return jaxarm.World(circles=circles, boxes=boxes, polygons=polygons)
+
+
+def shapely_obstacles(world: jaxarm.World):
+    """Circles as (center, radius) for exact distances; boxes and polygons as Polygons."""
+    polygons = [shapely.box(*lo, *hi) for lo, hi in world.boxes]
+    polygons += [shapely.Polygon(p) for p in world.polygons]
+    return [(shapely.Point(c[:2]), c[2]) for c in world.circles], polygons
+
+
+def oracle_separation(world, start, end):
+    """Signed separation of each segment from the nearest obstacle, and the open-set verdict."""
+    circles, polygons = shapely_obstacles(world)
+    segments = shapely.linestrings(np.stack([start, end], axis=-2))
+    distance = np.full(len(segments), np.inf)
+    hit = np.zeros(len(segments), dtype=bool)
+    for center, radius in circles:
+        d = shapely.distance(segments, center) - radius
+        distance, hit = np.minimum(distance, d), hit | (d < 0)
+    for polygon in polygons:
+        distance = np.minimum(distance, shapely.distance(segments, polygon))
+        hit |= shapely.relate_pattern(segments, polygon, "T********")
+    return distance, hit
+
+
+def random_world_problems(rng, n_worlds):
+    """Problems with random worlds around a fixed start and goal (skipping colliding ones)."""
+    arm = jaxarm.Arm((30.0, 30.0, 20.0))
+    problems = []
+    while len(problems) < n_worlds:
+        try:
+            problems.append(jaxarm.Problem(arm=arm, start=[-1.0, 1.2, 0.8], goal=[1.2, -0.6, 1.0],
+                                           world=random_world(rng), capacities=CAPACITIES,
+                                           init_low=-60.0, init_high=60.0))
+        except ValueError:
+            continue
+    return problems
+
+
+def joint_positions_along(problem, x, n_samples):
+    r = np.linspace(0.0, 1.0, n_samples)
+    theta = jaxarm.joint_path(problem, x, r)
+    return np.asarray(jaxarm.joint_positions(problem.arm.lengths, theta), dtype=np.float64)
+
+
+def oracle_path_collides(problem, x, n_samples):
+    """Per path: does any link's interior meet any obstacle's at any of n_samples samples."""
+    positions = joint_positions_along(problem, x, n_samples)  # (paths, samples, joints + 1, 2)
+    start, end = positions[..., :-1, :], positions[..., 1:, :]
+    _, hit = oracle_separation(problem.world, start.reshape(-1, 2), end.reshape(-1, 2))
+    return hit.reshape(len(x), -1).any(axis=-1)
+
+
+def thin_wall_problem(rng):
+    """A 0.2 cm wall somewhere in the arm's way: what a sampled check can step over."""
+    arm = jaxarm.Arm((30.0, 30.0, 20.0))
+    while True:
+        corner = rng.uniform(-50, 50, 2)
+        size = (0.2, rng.uniform(5, 30)) if rng.random() < 0.5 else (rng.uniform(5, 30), 0.2)
+        world = jaxarm.World(boxes=[(tuple(corner), tuple(corner + size))],
+                             circles=[(*rng.uniform(-60, 60, 2), rng.uniform(1, 5))])
+        try:
+            return jaxarm.Problem(arm=arm, start=[-1.0, 1.2, 0.8], goal=[1.2, -0.6, 1.0],
+                                  world=world, capacities=CAPACITIES)
+        except ValueError:
+            continue

@@ -1,0 +1,67 @@
+"""Arm kinematics (``jaxarm.arm``)."""
+
+import math
+
+import jax
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+import jaxarm
+
+
+ARM = jaxarm.Arm((30.0, 30.0, 20.0))
+
+
+def test_forward_kinematics_is_the_papers_eqs_1_to_3():
+    theta = np.array([0.3, -1.1, 0.7])
+    positions = np.asarray(jaxarm.joint_positions(ARM.lengths, theta))
+    x1, y1 = 30 * math.cos(0.3), 30 * math.sin(0.3)
+    x2, y2 = x1 + 30 * math.cos(-0.8), y1 + 30 * math.sin(-0.8)
+    x3, y3 = x2 + 20 * math.cos(-0.1), y2 + 20 * math.sin(-0.1)
+    np.testing.assert_allclose(positions, [[0, 0], [x1, y1], [x2, y2], [x3, y3]], atol=1e-5)
+
+
+def test_forward_kinematics_batches_over_any_leading_shape():
+    theta = np.random.default_rng(0).uniform(-3, 3, (4, 5, 3))
+    batched = np.asarray(jaxarm.joint_positions(ARM.lengths, theta))
+    assert batched.shape == (4, 5, 4, 2)
+    np.testing.assert_allclose(batched[2, 3], jaxarm.joint_positions(ARM.lengths, theta[2, 3]),
+                               atol=1e-5)
+
+
+@given(x=st.floats(-75, 75), y=st.floats(-75, 75), phi=st.floats(-math.pi, math.pi),
+       elbow=st.sampled_from([1, -1]))
+def test_inverse_kinematics_round_trips(x, y, phi, elbow):
+    try:
+        theta = jaxarm.inverse_kinematics(ARM, x, y, phi, elbow)
+    except ValueError as error:
+        assert "unreachable" in str(error)
+        wrist = math.hypot(x - 20 * math.cos(phi), y - 20 * math.sin(phi))
+        assert wrist > 60 - 1e-9
+        return
+    assert np.sign(theta[1]) in (elbow, 0)
+    with jax.enable_x64(True):
+        end = np.asarray(jaxarm.joint_positions(ARM.lengths, theta))[-1]
+    np.testing.assert_allclose(end, [x, y], atol=1e-7)
+    assert math.remainder(theta.sum() - phi, 2 * math.pi) == pytest.approx(0, abs=1e-9)
+
+
+def test_inverse_kinematics_errors():
+    with pytest.raises(ValueError, match=r"pose \(x=100, y=0, phi=0\) is unreachable"):
+        jaxarm.inverse_kinematics(ARM, 100, 0, 0)
+    with pytest.raises(ValueError, match=r"needs a 3-link arm.* 2 links"):
+        jaxarm.inverse_kinematics(jaxarm.Arm((1.0, 1.0)), 1, 0, 0)
+    with pytest.raises(ValueError, match=r"pose.elbow must be \+1 or -1, got 0"):
+        jaxarm.inverse_kinematics(ARM, 50, 0, 0, elbow=0)
+
+
+def test_float32_sincos_is_accurate_over_a_wide_range():
+    from jaxarm.arm import sincos
+
+    angle = np.linspace(-2000.0, 2000.0, 400_001, dtype=np.float32)
+    sine, cosine = sincos(jax.numpy.asarray(angle))
+    reference = angle.astype(np.float64)
+    assert np.abs(np.asarray(sine) - np.sin(reference)).max() < 5e-7
+    assert np.abs(np.asarray(cosine) - np.cos(reference)).max() < 5e-7

@@ -1,0 +1,97 @@
+"""The ``jaxarm`` command (``jaxarm.cli``)."""
+
+import json
+
+import pytest
+
+import jaxarm
+from jaxarm import choices, cli
+
+
+def run_cli(capsys, *argv):
+    code = cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_cli_scenarios_lists_every_shipped_scenario(capsys):
+    code, out, _ = run_cli(capsys, "scenarios")
+    assert code == 0
+    assert len(out.splitlines()) == len(jaxarm.available_scenarios()) >= 11
+
+
+def test_cli_solve_writes_json_and_plot(capsys, tmp_path):
+    code, out, _ = run_cli(capsys, "solve", "paper-case-2", "--particles", "8", "--iters", "12",
+                           "--restarts", "2", "--json", str(tmp_path / "r.json"),
+                           "--plot", str(tmp_path / "r.png"))
+    assert code == 0 and "fitness" in out
+    data = json.loads((tmp_path / "r.json").read_text())
+    assert len(data["best_x"]) == 3 and len(data["history"]) == 13
+    assert data["scenario"] == "paper-case-2"
+    loaded = jaxarm.Result.from_dict(data)
+    assert loaded.restarts.best_x.shape == (2, 3) and loaded.method == "A"
+    assert (tmp_path / "r.png").stat().st_size > 5000
+
+
+def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
+    code, out, _ = run_cli(capsys, "study", "paper-case-2", "--seeds", "4", "--methods",
+                           "A,A:feasibility", "--particles", "8", "--iters", "12",
+                           "--json", str(tmp_path / "s.json"), "--csv", str(tmp_path / "s.csv"),
+                           "--plot", str(tmp_path / "s.png"))
+    assert code == 0 and "escape rate" in out
+    assert len((tmp_path / "s.csv").read_text().splitlines()) == 9
+    assert len(json.loads((tmp_path / "s.json").read_text())["methods"]) == 2
+    assert (tmp_path / "s.png").stat().st_size > 5000
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["solve", "no-such-scenario"], "unknown scenario 'no-such-scenario'"),
+        (["solve", "missing.toml"], "cannot read scenario file 'missing.toml'"),
+        (["solve", "paper-case-2", "--degree", "4"], "degree must be >= 6, got 4"),
+        (["study", "paper-case-2", "--methods", "A,Z"], "method must be one of"),
+        (["solve", "paper-case-2", "--seed", "-3"], "seed must be an integer"),
+    ],
+)
+def test_cli_errors_are_one_line_without_traceback(capsys, argv, message):
+    code, _, err = run_cli(capsys, *argv)
+    assert code == 2
+    assert err.count("\n") == 1 and message in err and "Traceback" not in err
+
+
+def test_cli_reports_malformed_and_colliding_scenarios(capsys, tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[arm\n")
+    code, _, err = run_cli(capsys, "solve", str(bad))
+    assert code == 2 and "malformed TOML" in err and err.count("\n") == 1
+    colliding = tmp_path / "colliding.toml"
+    colliding.write_text("[arm]\nlengths = [30.0, 30.0, 20.0]\n[start]\njoints = [0, 0, 0]\n"
+                         "[goal]\njoints = [1, 0, 0]\n[[obstacles]]\ntype = 'circle'\n"
+                         "center = [40, 0]\nradius = 3\n")
+    code, _, err = run_cli(capsys, "solve", str(colliding))
+    assert code == 2 and "start posture" in err and "link 2 overlaps circles[0]" in err
+
+
+def test_cli_help_on_every_subcommand(capsys):
+    for command in ("scenarios", "solve", "study", "reproduce-paper"):
+        with pytest.raises(SystemExit) as exit_info:
+            cli.main([command, "--help"])
+        assert exit_info.value.code == 0
+        assert "usage: jaxarm" in capsys.readouterr().out
+
+
+def test_the_cli_offers_the_librarys_choices_without_importing_jax():
+    import subprocess
+    import sys
+
+    script = ("import sys, jaxarm.cli; parser = jaxarm.cli.build_parser(); "
+              "assert 'jax' not in sys.modules, 'jax imported'; print('ok')")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=120)
+    assert done.stdout.strip() == "ok", done.stderr
+    commands = cli.build_parser()._subparsers._group_actions[0].choices
+    options = {a.dest: a.choices for a in commands["solve"]._actions if a.choices}
+    assert options["method"] == choices.PRESET_NAMES
+    assert options["constraint"] == choices.CONSTRAINTS
+    assert options["collision"] == choices.COLLISION_MODES

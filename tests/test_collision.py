@@ -1,0 +1,53 @@
+"""The sampled check and the window bounds (``jaxarm.collision``) against shapely and dense
+grids."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxarm
+from jaxarm import collision, path
+
+from oracles import oracle_path_collides, random_world_problems
+
+
+def test_sampled_check_agrees_with_shapely_on_the_same_samples(rng):
+    agreed = 0
+    for problem in random_world_problems(rng, 40):
+        x = rng.uniform(problem.init_low, problem.init_high, (25, problem.n_free))
+        ours = np.asarray(jaxarm.violation(problem, x))
+        oracle = oracle_path_collides(problem, x, problem.n_samples)
+        decided = (ours == 0) | (ours > 1e-4)  # skip paths that only graze an obstacle
+        np.testing.assert_array_equal((ours > 0)[decided], oracle[decided])
+        agreed += decided.sum()
+    assert agreed > 900
+
+
+@pytest.mark.parametrize("degree", [6, 8])
+def test_window_speed_bounds_hold_on_a_dense_grid(rng, degree):
+    """The window pass's bound on |theta_j'| over a window (centre velocity plus Taylor tail
+    weights) is never below the true speed."""
+    n_samples = 21
+    step = 1.0 / (n_samples - 1)
+    start, goal = rng.uniform(-3, 3, 3), rng.uniform(-3, 3, 3)
+    x = rng.uniform(-200, 200, (50, 3 * (degree - 5)))
+    samples = np.linspace(0.0, 1.0, n_samples)
+    with jax.enable_x64(True):
+        window_tails = collision.tail_weights(degree, samples, step / 2)
+        worst_ratio = 0.0
+        for s in range(n_samples):
+            centre, radius = samples[s], step / 2
+            velocity = path.joint_angle_list(start, goal, jnp.asarray(x),
+                                             path.basis_values(degree, [centre], 1), order=1)
+            bound = collision.speed_bound(start, goal, jnp.asarray(x),
+                                          [v[:, 0] for v in velocity],
+                                          jnp.asarray(window_tails[s]))
+            dense = np.linspace(centre - radius, centre + radius, 41)
+            true = path.joint_angles(start, goal, jnp.asarray(x),
+                                     path.basis_values(degree, dense, 1), order=1)
+            true = np.abs(np.asarray(true)).max(axis=1)  # (paths, joints)
+            bound = np.stack([np.asarray(b) for b in bound], axis=-1)
+            assert np.all(true <= bound * (1 + 1e-12)), s
+            worst_ratio = max(worst_ratio, float((true / bound).max()))
+    assert worst_ratio > 0.9  # and not uselessly loose

@@ -1,0 +1,57 @@
+"""Gradient polish (``jaxarm.refine``): never worse, never colliding, shapes."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import jaxarm
+from jaxarm import published
+
+
+@pytest.fixture(scope="module")
+def feasible_case2_paths():
+    problem = jaxarm.load_scenario("paper-case-2")
+    x = np.random.default_rng(7).uniform(-200, 200, (4000, 3))
+    return x[np.asarray(jaxarm.violation(problem, x)) == 0]
+
+
+@settings(max_examples=12)
+@given(data=st.data(), mode=st.sampled_from(["sampled", "certified"]))
+def test_refine_never_worsens_and_never_collides(feasible_case2_paths, data, mode):
+    problem = jaxarm.load_scenario("paper-case-2", collision=mode)
+    rows = data.draw(st.lists(st.integers(0, len(feasible_case2_paths) - 1), min_size=4,
+                              max_size=4))
+    x = feasible_case2_paths[rows]  # feasible when sampled; maybe not when certified
+    feasible = np.asarray(jaxarm.violation(problem, x)) == 0
+    polished = jaxarm.refine(problem, x, n_steps=60)
+    assert np.all(polished.fitness >= polished.initial_fitness)
+    assert not np.any(np.asarray(jaxarm.collides(problem, polished.x))[feasible])
+    np.testing.assert_array_equal(polished.x[~feasible], x[~feasible].astype(np.float32))
+    np.testing.assert_allclose(np.asarray(jaxarm.fitness(problem, polished.x)), polished.fitness,
+                               rtol=1e-5)
+    assert np.all(np.diff(polished.history, axis=-1) >= 0)
+
+
+def test_refine_improves_a_deliberately_poor_path(case2):
+    poor = published.CASE_2_TABLE_4[4]  # [181.07, -34.81, -147.86], fitness 0.0805
+    polished = jaxarm.refine(case2, poor.a6)
+    assert polished.fitness > poor.fitness + 0.01
+    assert polished.n_accepted > 0 and polished.history.shape == (201,)
+
+
+def test_refine_keeps_the_leading_shape_of_x(case2):
+    poor = published.CASE_2_TABLE_4[4].a6
+    x = np.stack([np.stack([poor, [0.0, 0.0, 0.0], poor])] * 2)  # (2, 3, n_free)
+    polished = jaxarm.refine(case2, x, n_steps=5)
+    assert polished.x.shape == (2, 3, 3) and polished.fitness.shape == (2, 3)
+    assert polished.n_accepted.shape == (2, 3) and polished.history.shape == (2, 3, 6)
+    np.testing.assert_array_equal(polished.x[:, 1], 0.0)  # the colliding row stays put
+    single = jaxarm.refine(case2, poor, n_steps=5)
+    np.testing.assert_array_equal(polished.x[1, 2], single.x)
+
+
+def test_refine_leaves_a_colliding_path_alone(case2):
+    polished = jaxarm.refine(case2, [0.0, 0.0, 0.0])  # blocked by the obstacle
+    np.testing.assert_array_equal(polished.x, [0.0, 0.0, 0.0])
+    assert polished.fitness == 0 and polished.n_accepted == 0

@@ -1,0 +1,121 @@
+"""The restart engine (``jaxarm.restarts``): determinism, independence of the batch, jit, compiles,
+sharding."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxarm
+from jaxarm import pso, restarts
+from jaxarm.restarts import compiled_search
+
+SMALL = dict(n_particles=8, n_iters=12)
+
+
+def test_same_seed_gives_bit_identical_results(case2):
+    first = jaxarm.solve(case2, "A", n_restarts=4, seed=11, **SMALL)
+    second = jaxarm.solve(case2, "A", n_restarts=4, seed=11, **SMALL)
+    np.testing.assert_array_equal(first.restarts.best_x, second.restarts.best_x)
+    np.testing.assert_array_equal(first.restarts.history, second.restarts.history)
+    other = jaxarm.solve(case2, "A", n_restarts=4, seed=12, **SMALL)
+    assert not np.array_equal(first.restarts.best_x, other.restarts.best_x)
+
+
+@pytest.mark.parametrize("n_restarts", [3, 8])
+def test_restart_results_do_not_depend_on_how_many_run(case2, n_restarts):
+    few = jaxarm.solve(case2, "B", n_restarts=n_restarts, seed=3, constraint="feasibility",
+                       **SMALL)
+    sixteen = jaxarm.solve(case2, "B", n_restarts=16, seed=3, constraint="feasibility", **SMALL)
+    np.testing.assert_array_equal(few.restarts.best_x, sixteen.restarts.best_x[:n_restarts])
+    np.testing.assert_array_equal(few.restarts.escape_iter,
+                                  sixteen.restarts.escape_iter[:n_restarts])
+    np.testing.assert_array_equal(few.restarts.history, sixteen.restarts.history[:n_restarts])
+
+
+@pytest.mark.slow
+def test_jit_equals_no_jit_on_one_restart(case2):
+    case2 = case2.replace(n_samples=11)  # eager scans run sample by sample in Python
+    config = pso.PRESETS["C"]
+    args = (case2.spec, case2.arrays, config.params(), config.rules(),
+            *(jnp.asarray(b, jnp.float32) for b in case2.bounds()), jnp.int32(0),
+            jnp.zeros(1, jnp.int32), None)
+    sizes = dict(n_particles=4, n_iters=2, constraint="feasibility")
+    jitted = compiled_search(*args, **sizes)
+    with jax.disable_jit():
+        eager = restarts.search_restarts(*args, **sizes)
+    for a, b in zip(jitted, eager):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-4, atol=1e-4)
+
+
+def test_a_second_problem_with_the_same_sizes_does_not_recompile(case2, case3):
+    jaxarm.solve(case2, "A", n_restarts=2, **SMALL)
+    before = compiled_search._cache_size()
+    jaxarm.solve(case3, "B", n_restarts=2, seed=5, **SMALL)  # new data, new preset, new seed
+    jaxarm.solve(case2.replace(start=[5.7, 1.2, 0.7]), "C", n_restarts=2, **SMALL)
+    assert compiled_search._cache_size() == before
+
+
+SHARDED_SCRIPT = """
+import numpy as np, jax, jaxarm
+assert len(jax.devices()) == 2, jax.devices()
+case2 = jaxarm.load_scenario("paper-case-2", collision="sampled")
+result = jaxarm.solve(case2, "A", n_particles=8, n_iters=12, n_restarts=7, seed=4,
+                      constraint="feasibility")
+np.save(OUT, np.concatenate([result.restarts.best_x.ravel(), result.restarts.history.ravel()]))
+"""
+
+
+@pytest.mark.slow
+def test_restarts_sharded_over_two_devices_match_one_device(case2, tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "two_devices.npy"
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2",
+               JAX_PLATFORMS="cpu")
+    subprocess.run([sys.executable, "-c", f"OUT = {str(out)!r}" + SHARDED_SCRIPT], env=env,
+                   check=True, timeout=300)
+    result = jaxarm.solve(case2, "A", n_restarts=7, seed=4, constraint="feasibility", **SMALL)
+    np.testing.assert_array_equal(
+        np.load(out),
+        np.concatenate([result.restarts.best_x.ravel(), result.restarts.history.ravel()]))
+
+
+def test_any_optimiser_with_an_init_step_pair_runs_in_the_restart_loop():
+    """A random search (not PSO) written as a ``pso.Swarm`` pair plugs into ``run_restart``."""
+    low, high = jnp.full(2, -1.0), jnp.full(2, 1.0)
+
+    def score(x):  # feasible where x[0] > 0.5
+        fitness = -jnp.sum((x - 0.3) ** 2, axis=-1)
+        return fitness, x[:, 0] > 0.5
+
+    def sample(key):
+        position = jax.random.uniform(key, (6, 2), minval=low, maxval=high)
+        fitness, feasible = score(position)
+        return position, fitness, feasible
+
+    def info(best, fitness, feasible):
+        return pso.StepInfo(global_position=best[0], global_fitness=best[1],
+                            global_score=best[1], n_feasible=feasible.sum().astype(jnp.int32))
+
+    def init(key):
+        position, fitness, feasible = sample(key)
+        best = (position[jnp.argmax(fitness)], fitness.max())
+        return best, info(best, fitness, feasible)
+
+    def step(key, best):
+        position, fitness, feasible = sample(key)
+        better = fitness.max() > best[1]
+        best = (jnp.where(better, position[jnp.argmax(fitness)], best[0]),
+                jnp.maximum(fitness.max(), best[1]))
+        return best, info(best, fitness, feasible)
+
+    run = jax.jit(restarts.run_restart, static_argnums=(1, 2))
+    best_x, escape_iter, escape_x, history = run(jax.random.key(0), pso.Swarm(init, step), 20)
+    assert history.shape == (21,) and np.all(np.diff(np.asarray(history)) >= 0)
+    assert float(-np.sum((np.asarray(best_x) - 0.3) ** 2)) == pytest.approx(float(history[-1]))
+    assert int(escape_iter) >= 0  # P(no sample with x[0] > 0.5 in 126) = 0.75 ** 126
+    escape_fitness = -np.sum((np.asarray(escape_x) - 0.3) ** 2)
+    assert escape_fitness == pytest.approx(float(history[int(escape_iter)]))

@@ -1,0 +1,79 @@
+"""Scenario files and the loader (``jaxarm.scenarios``)."""
+
+import numpy as np
+import pytest
+
+import jaxarm
+
+ARM = jaxarm.Arm((30.0, 30.0, 20.0))
+
+
+def test_paper_case_1_postures_come_from_its_poses():
+    problem = jaxarm.load_scenario("paper-case-1")
+    np.testing.assert_allclose(jaxarm.inverse_kinematics(ARM, 50, -10, 0.201777, 1), problem.start,
+                               atol=1e-12)
+    np.testing.assert_allclose(jaxarm.inverse_kinematics(ARM, 50, 40, 0.886701, 1), problem.goal,
+                               atol=1e-12)
+
+
+def test_shipped_scenarios_load():
+    names = jaxarm.available_scenarios()
+    assert {"paper-case-1", "paper-case-2", "paper-case-3"} <= set(names)
+    for name, description in names.items():
+        problem = jaxarm.load_scenario(name)
+        assert problem.name == name and description
+
+
+def test_load_from_path_with_pose_and_overrides(tmp_path):
+    path = tmp_path / "mine.toml"
+    path.write_text(
+        '[arm]\nlengths = [30.0, 30.0, 20.0]\n'
+        '[start]\npose = { x = 50.0, y = -10.0, phi = 0.0 }\n'
+        '[goal]\njoints = [0.3, 1.2, -1.5]\n'
+        '[search]\ndegree = 7\nsamples = 51\ninit_low = [-1, -2, -3, -4, -5, -6]\ninit_high = 9\n'
+        '[[obstacles]]\ntype = "polygon"\nvertices = [[-10, 50], [-20, 60], [-5, 70]]\n'
+    )
+    problem = jaxarm.load_scenario(path, collision="certified")
+    assert problem.name == "mine" and problem.degree == 7 and problem.n_samples == 51
+    assert problem.collision == "certified" and len(problem.world.polygons) == 1
+    np.testing.assert_allclose(problem.bounds()[0], [-1, -2, -3, -4, -5, -6])
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("[arm\nlengths = [1]", r"bad.toml: malformed TOML: .*line 1"),
+        ("[arm]\nlengths = [30.0]\nlenghts = 2\n[start]\njoints=[0]\n[goal]\njoints=[1]",
+         r"unknown key in \[arm\]: 'lenghts'"),
+        ("[arm]\nlengths = [30.0, 30.0, 20.0]\n[start]\npose = {x = 100, y = 0}\n"
+         "[goal]\njoints = [0, 0, 0]", r"start.pose \(x=100, y=0, phi=0.0\) is unreachable"),
+        ("[arm]\nlengths = [30.0]\n[start]\njoints = [0]\n[goal]\njoints = [1]\n"
+         "[search]\nsamples = 100", r"n_samples must be odd"),
+        ("[arm]\nlengths = [30.0]\n[start]\njoints = [0]\n[goal]\njoints = [1]\n"
+         "[[obstacles]]\ntype = 'circle'\ncenter = [50, 50]\nradius = -1",
+         r"obstacles\[0\] radius must be > 0, got -1.0"),
+        ("[arm]\nlengths = [30.0]\n[start]\njoints = [0]\n[goal]\njoints = [1]\n"
+         + "[[obstacles]]\ntype = 'circle'\ncenter = [50, 50]\nradius = 1\n" * 3
+         + "[[obstacles]]\ntype = 'circle'\ncenter = [50, 50]\nradius = 0",
+         r"bad.toml: obstacles\[3\] radius must be > 0, got 0.0"),
+        ("units = 'mm, deg'\n[arm]\nlengths = [30.0]\n[start]\njoints = [0]\n[goal]\njoints = [1]",
+         r"units must be 'cm, rad' \(lengths in cm, angles in rad\), got 'mm, deg'"),
+        ("[arm]\nlengths = [30.0]\n[start]\njoints = [0]\n[goal]\njoints = [1]\n"
+         "[[obstacles]]\ntype = 'polygon'\nvertices = [[0, 50], [10, 60], [0, 60], [10, 50]]",
+         r"obstacles\[0\] is not convex"),
+        ("[arm]\nlengths = [30.0]\n[start]\njoints = [0]\n[goal]\njoints = [1]\n"
+         "[[obstacles]]\ntype = 'box'\nmin = [0, 50]", r"obstacles\[0\] \(box\) is missing 'max'"),
+        ("[arm]\nlengths = [30.0]\n[goal]\njoints = [1]", r"\[start\] must be a table"),
+    ],
+)
+def test_malformed_scenarios_name_the_file_and_key(tmp_path, text, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(jaxarm.ScenarioError, match=message):
+        jaxarm.load_scenario(path)
+
+
+def test_unknown_scenario_lists_the_shipped_ones():
+    with pytest.raises(ValueError,
+                       match=r"unknown scenario 'paper-case-9'; shipped .*paper-case-1"):
+        jaxarm.load_scenario("paper-case-9")

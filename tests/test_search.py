@@ -1,0 +1,161 @@
+"""``jaxarm.solve`` and its ``Result``: arguments, fields, escape rates against the paper,
+refinement, higher degrees, more links."""
+
+import json
+
+import numpy as np
+import pytest
+
+import jaxarm
+from jaxarm import pso
+from jaxarm.study import wilson_interval
+
+from oracles import oracle_separation
+
+
+SMALL = dict(n_particles=8, n_iters=12)
+
+
+def test_init_particles_seed_the_swarm(case2):
+    known = [66.7388, -28.1028, -9.8855]  # paper Table 6, fitness 0.1946
+    result = jaxarm.solve(case2, "A", n_restarts=3, init_particles=[known], **SMALL)
+    assert np.all(result.restarts.escape_iter == 0)
+    assert np.all(result.restarts.best_fitness >= 0.1946)
+    assert np.all(result.restarts.history[:, 0] >= 0.1946)
+    with pytest.raises(ValueError, match=r"init_particles must have shape \(n_given <= 8, 3\)"):
+        jaxarm.solve(case2, init_particles=np.zeros((2, 4)), **SMALL)
+
+
+def test_result_fields_are_consistent(case2):
+    result = jaxarm.solve(case2, "A", n_restarts=5, seed=1, **SMALL)
+    assert result.best_x.shape == (3,) and result.history.shape == (13,)
+    assert result.restarts.best_x.shape == (5, 3) and result.restarts.history.shape == (5, 13)
+    best = int(np.argmax(result.restarts.best_fitness))
+    assert result.best_fitness == result.restarts.best_fitness[best]
+    assert result.feasible == (result.best_fitness > 0)
+    # history is the global best's fitness: non-decreasing under the death penalty
+    assert np.all(np.diff(result.restarts.history, axis=1) >= 0)
+    escaped = result.restarts.escape_iter >= 0
+    assert np.all(result.restarts.history[escaped, -1] > 0)
+    assert (result.method, result.constraint, result.collision) == ("A", "death", "sampled")
+    assert "fitness" in result.summary()
+
+
+def test_certified_search_returns_certified_paths(case2):
+    result = jaxarm.solve(case2.replace(collision="certified"), "A", n_restarts=4,
+                          constraint="feasibility", **SMALL)
+    assert result.feasible and result.certified and result.collision == "certified"
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(constraint="soft"), r"constraint must be one of .* got 'soft'"),
+        (dict(n_particles=0), r"n_particles must be >= 1, got 0"),
+        (dict(n_restarts=2.5), r"n_restarts must be an integer, got 2.5"),
+        (dict(seed=-1), r"seed must be an integer in \[0, 2\*\*31\), got -1"),
+    ],
+)
+def test_bad_solve_arguments(case2, kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        jaxarm.solve(case2, **kwargs)
+
+
+def test_feasible_results_are_collision_free_by_shapely(case2):
+    result = jaxarm.solve(case2, "A", n_restarts=6, constraint="feasibility", **SMALL)
+    feasible = result.restarts.best_violation == 0
+    assert feasible.any()
+    r = np.linspace(0.0, 1.0, case2.n_samples)
+    theta = jaxarm.joint_path(case2, result.restarts.best_x[feasible], r)
+    positions = np.asarray(jaxarm.joint_positions(case2.arm.lengths, theta), dtype=np.float64)
+    _, hit = oracle_separation(case2.world, positions[..., :-1, :].reshape(-1, 2),
+                               positions[..., 1:, :].reshape(-1, 2))
+    assert not hit.any()
+
+
+def _escape_rate(problem, method, constraint, n_restarts=200):
+    result = jaxarm.solve(problem, method, n_restarts=n_restarts, constraint=constraint, seed=0)
+    return float(np.mean(result.restarts.escape_iter >= 0))
+
+
+PAPER_3_OF_7 = wilson_interval(3, 7)  # Table 2: 3 of 7 runs escaped, per preset
+
+
+def test_case_1_death_penalty_escape_is_consistent_with_the_papers_3_of_7_for_a(case1):
+    rate = _escape_rate(case1, "A", "death")
+    assert PAPER_3_OF_7[0] <= rate <= PAPER_3_OF_7[1], rate
+
+
+@pytest.mark.parametrize("fixture", ["case2", "case3"])
+def test_feasibility_rules_escape_on_cases_2_and_3(fixture, request):
+    # On case 1 they do not (62 % over these 200 seeds, below the death penalty's 70 %;
+    # benchmarks/RESULTS.md).
+    assert _escape_rate(request.getfixturevalue(fixture), "A", "feasibility") >= 0.99
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["B", "C"])
+def test_case_1_death_penalty_escape_is_consistent_with_the_papers_3_of_7(case1, method):
+    rate = _escape_rate(case1, method, "death")
+    assert PAPER_3_OF_7[0] <= rate <= PAPER_3_OF_7[1], rate
+
+
+def test_solve_with_refine_is_never_worse(case2):
+    plain = jaxarm.solve(case2, "B", n_particles=8, n_iters=15, n_restarts=6, seed=2)
+    refined = jaxarm.solve(case2, "B", n_particles=8, n_iters=15, n_restarts=6, seed=2,
+                           refine="all")
+    assert refined.pso_best_fitness == plain.best_fitness
+    assert refined.best_fitness >= plain.best_fitness
+    assert np.all(refined.restarts.best_fitness >= plain.restarts.best_fitness)
+    assert not bool(jaxarm.collides(case2, refined.best_x))
+    with pytest.raises(ValueError, match="refine must be False, True or 'all'"):
+        jaxarm.solve(case2, refine="yes")
+
+
+@pytest.mark.slow
+def test_degree_8_on_case_1_warm_started_is_at_least_as_good_as_degree_6(case1):
+    # Cold, degree 8 rarely escapes on case 1 (4 % of 100 restarts, benchmarks/RESULTS.md);
+    # warm-started from the degree-6 optimum it can only do better.
+    settings_ = dict(n_restarts=20, constraint="feasibility", seed=0)
+    six = jaxarm.solve(case1, "A", **settings_)
+    assert six.feasible
+    eight_problem = case1.replace(degree=8)
+    warm = jaxarm.solve(eight_problem, "A", init_particles=[jaxarm.raise_degree(six.best_x, 3, 8)],
+                        **settings_)
+    assert warm.feasible and warm.best_x.shape == (9,)
+    assert warm.best_fitness >= six.best_fitness * (1 - 1e-6)
+    # The higher-degree path still meets the boundary conditions.
+    ends = np.asarray(jaxarm.joint_path(eight_problem, warm.best_x, np.array([0.0, 1.0])))
+    np.testing.assert_allclose(ends, [case1.start, case1.goal], atol=1e-4)
+
+
+@pytest.mark.slow
+def test_five_link_scenario_solves_and_is_free_by_shapely():
+    problem = jaxarm.load_scenario("five-link-detour")
+    result = jaxarm.solve(problem, "A", n_restarts=8, constraint="feasibility", seed=0)
+    assert result.feasible and result.best_x.shape == (5,)
+    r = np.linspace(0.0, 1.0, problem.n_samples)
+    positions = np.asarray(jaxarm.joint_positions(problem.arm.lengths,
+                                                  jaxarm.joint_path(problem, result.best_x, r)),
+                           dtype=np.float64)
+    _, hit = oracle_separation(problem.world, positions[:, :-1].reshape(-1, 2),
+                               positions[:, 1:].reshape(-1, 2))
+    assert not hit.any()
+
+
+def test_result_nests_the_restarts_and_round_trips_through_json(case2):
+    result = jaxarm.solve(case2, "C", n_restarts=5, seed=2, constraint="feasibility", **SMALL)
+    outcome = result.restarts
+    assert isinstance(outcome, jaxarm.RestartOutcome)
+    assert result.best_restart == outcome.best_restart()
+    np.testing.assert_array_equal(result.best_x, outcome.best_x[result.best_restart])
+    assert result.feasible == bool(outcome.best_violation[result.best_restart] == 0)
+    # the flat names of the documented API read the same arrays
+    assert result.restart_best_x is outcome.best_x
+    assert result.restart_escape_iter is outcome.escape_iter
+    text = json.dumps(result.to_dict(), allow_nan=False)  # strict JSON: NaN written as null
+    loaded = jaxarm.Result.from_dict(json.loads(text))
+    for name in outcome._fields:
+        np.testing.assert_array_equal(getattr(loaded.restarts, name), getattr(outcome, name))
+    assert loaded._replace(restarts=outcome) == result._replace(restarts=outcome)
+    assert loaded.config == pso.PRESETS["C"]

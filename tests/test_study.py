@@ -1,0 +1,96 @@
+"""Escape studies (``jaxarm.study``): Wilson intervals, reproducibility, records, sweeps."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import jaxarm
+from jaxarm import study
+
+
+SMALL = dict(n_particles=8, n_iters=12)
+
+
+@pytest.mark.parametrize("successes, trials", [(0, 10), (3, 7), (46, 100), (500, 500), (1, 3)])
+def test_wilson_interval_matches_a_reference(successes, trials):
+    reference = stats.binomtest(successes, trials).proportion_ci(0.95, method="wilson")
+    low, high = study.wilson_interval(successes, trials)
+    assert low == pytest.approx(reference.low, abs=1e-12)
+    assert high == pytest.approx(reference.high, abs=1e-12)
+
+
+def test_study_is_reproducible_and_chunking_does_not_matter(case2):
+    one = study.escape_study(case2, ["A", "B:feasibility"], n_seeds=10, chunk_size=10, **SMALL)
+    chunked = study.escape_study(case2, ["A", "B:feasibility"], n_seeds=10, chunk_size=4,
+                                 **SMALL)
+    for a, b in zip(one.methods, chunked.methods):
+        np.testing.assert_array_equal(a.outcome.escape_iter, b.outcome.escape_iter)
+        np.testing.assert_array_equal(a.outcome.best_x, b.outcome.best_x)
+    # seed i of a study is restart i of solve with the same seed
+    result = jaxarm.solve(case2, "A", n_restarts=10, **SMALL)
+    np.testing.assert_array_equal(one["A"].outcome.best_x, result.restarts.best_x)
+
+
+def test_study_summaries_tables_and_records(case2):
+    result = study.escape_study(case2, ["A", "C"], n_seeds=6, constraint="feasibility", **SMALL)
+    assert [m.variant.label for m in result.methods] == ["A:feasibility", "C:feasibility"]
+    summary = result["A:feasibility"].summary()
+    assert summary["escaped"] == int(np.sum(result["A:feasibility"].outcome.escape_iter >= 0))
+    curve = result["A:feasibility"].escape_curve()
+    assert curve.shape == (13,) and np.all(np.diff(curve) >= 0)
+    assert curve[-1] == pytest.approx(summary["escape_rate"])
+    table = result.table()
+    assert table.count("\n") == 3 and "A:feasibility" in table
+    assert json.loads(result.to_json())["methods"][1]["method"] == "C:feasibility"
+    records = result.records()
+    assert len(records) == 12 and records[0]["restart"] == 0
+    assert result.to_csv().splitlines()[0].startswith("problem,method,constraint")
+    with pytest.raises(KeyError, match="no method 'B'"):
+        result["B"]
+
+
+def test_sweep_finds_feasible_intervals(case2):
+    values = np.linspace(-60, 60, 241)
+    fitness = study.sweep_coefficient(case2, [120.0, -50.0, 0.0], 2, values)
+    intervals = study.feasible_intervals(values, fitness > 0)
+    assert intervals and all(a <= b for a, b in intervals)
+    for a, b in intervals:
+        inside = (values >= a) & (values <= b)
+        assert np.all(fitness[inside] > 0)
+    assert study.feasible_intervals([1, 2, 3, 4], [True, False, True, True]) == [(1, 1), (3, 4)]
+
+
+def test_study_rows_have_unique_labels_and_feasibility_comes_from_the_violation(case2):
+    wide = jaxarm.PSOConfig(cognitive_coeff=2.0, social_coeff=2.0)
+    narrow = jaxarm.PSOConfig(cognitive_coeff=0.5, social_coeff=0.5)
+    named = jaxarm.Variant("mine", narrow, "feasibility")
+    result = study.escape_study(case2, [wide, narrow, named, "A"], n_seeds=4, **SMALL)
+    assert [m.variant.label for m in result.methods] == ["custom", "custom-2", "mine", "A"]
+    assert result["custom-2"].variant.config == narrow
+    for method in result.methods:
+        feasible = method.outcome.best_violation == 0
+        np.testing.assert_array_equal(method.outcome.feasible, feasible)
+        assert method.summary()["fitness_best"] == (
+            method.outcome.best_fitness[feasible].max() if feasible.any() else None)
+    with pytest.raises(KeyError, match="no method 0"):
+        result[0]  # rows by label only; fields by name
+    assert result.problem_name == case2.name
+
+
+@pytest.mark.parametrize(
+    "methods, kwargs, message",
+    [
+        (["A", "A"], {}, r"methods must have unique labels, got 'A' twice"),
+        (["A:soft"], {}, r"constraint must be one of .* got 'soft'"),
+        ([], {}, r"methods must name at least one method"),
+        (["A"], dict(seed=-1), r"seed must be an integer in \[0, 2\*\*31\), got -1"),
+        (["A"], dict(n_iters=0), r"n_iters must be >= 1, got 0"),
+        (["A"], dict(n_particles=2.5), r"n_particles must be an integer, got 2.5"),
+        (["A"], dict(constraint="soft"), r"constraint must be one of .* got 'soft'"),
+    ],
+)
+def test_bad_study_arguments_name_the_field(case2, methods, kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        study.escape_study(case2, methods, n_seeds=2, **kwargs)

@@ -1,0 +1,64 @@
+"""Obstacles and segment-obstacle separation (``jaxarm.world``) against shapely."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxarm
+from jaxarm import world as world_lib
+
+from oracles import CAPACITIES, oracle_separation, random_world
+
+
+@pytest.mark.parametrize(
+    "world, message",
+    [
+        (dict(circles=[(0.0, 0.0)]), r"world.circles\[0\] must have 3 values"),
+        (dict(boxes=[((1.0, 1.0), (0.0, 2.0))]), r"world.boxes\[0\] needs min < max"),
+        (dict(polygons=[[(0, 0), (1, 1), (2, 2)]]), r"world.polygons\[0\] is degenerate"),
+        (dict(polygons=[[(0, 0), (1, 0)]]), r"world.polygons\[0\] must be at least 3"),
+    ],
+)
+def test_bad_worlds(world, message):
+    with pytest.raises(ValueError, match=message):
+        jaxarm.World(**world)
+
+
+def test_segment_separation_agrees_with_shapely_on_random_worlds(rng):
+    checked = 0
+    for _ in range(300):
+        world = random_world(rng)
+        start = rng.uniform(-70, 70, (40, 2))
+        end = start + rng.normal(0, 20, (40, 2))
+        packed = world.pack(CAPACITIES)
+        separation = np.asarray(world_lib.separation(jnp.asarray(start), jnp.asarray(end),
+                                                     packed)).min(axis=-1)
+        penetration = np.asarray(world_lib.penetration(jnp.asarray(start), jnp.asarray(end),
+                                                       packed)).sum(axis=-1)
+        distance, hit = oracle_separation(world, start, end)
+        clear = np.abs(separation) > 1e-3  # away from exact tangency (float32 rounding)
+        np.testing.assert_array_equal((penetration > 0)[clear], hit[clear])
+        np.testing.assert_array_equal((separation < 0)[clear], hit[clear])
+        apart = clear & ~hit
+        np.testing.assert_allclose(separation[apart], distance[apart], rtol=1e-4, atol=1e-3)
+        # The certified check's cheap bound: never above the distance, and zero-crossing where
+        # the exact separation does (its negative part is the same penetration depth).
+        bound = np.asarray(world_lib.separation_bound_xy(
+            *(jnp.asarray(a) for a in (start[:, 0], start[:, 1], end[:, 0], end[:, 1])),
+            packed)).min(axis=0)
+        assert np.all(bound[apart] <= distance[apart] + 1e-3)
+        np.testing.assert_array_equal((bound < 0)[clear], hit[clear])
+        checked += clear.sum()
+    assert checked > 10_000
+
+
+@pytest.mark.parametrize("offset, collides", [(0.5, True), (-0.5, False), (0.0, False)])
+def test_segment_parallel_to_a_box_side(offset, collides):
+    """Paper-case-1 has horizontal last links (exactly zero dy) next to a box's bottom side."""
+    world = jaxarm.World(boxes=[((33.0, 0.0), (70.0, 30.0))])
+    start = jnp.array([[20.0, offset], [40.0, offset]])
+    end = jnp.array([[40.0, offset], [50.0, offset]])
+    penetration = np.asarray(world_lib.penetration(start, end, world.pack()))
+    assert (penetration[1].sum() > 0) == collides
+    _, hit = oracle_separation(world, np.asarray(start), np.asarray(end))
+    assert hit[1] == collides
