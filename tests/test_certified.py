@@ -5,7 +5,9 @@ import numpy as np
 import pytest
 
 import jaxarm
+from jaxarm import published
 from jaxarm.oracle import dense_clearance
+from jaxarm.published import a6_array
 
 from oracles import oracle_path_collides, thin_wall_problem
 
@@ -66,14 +68,14 @@ def test_certified_is_sound_and_not_too_conservative_against_a_dense_check(rng):
 
 
 def test_certificate_fields_and_the_papers_free_paths(case2):
-    published = np.array([[66.7388, -28.1028, -9.8855], [62.9, -25.115, -15.554]])
-    certificate = jaxarm.certify(case2, published)
+    paths = np.array([published.CASE_2_TABLE_3[0].a6, published.CASE_2_TABLE_6[0][1]])
+    certificate = jaxarm.certify(case2, paths)
     assert certificate.free.shape == (2,) and bool(np.all(certificate.free))
     assert not bool(np.any(certificate.colliding | certificate.exhausted))
     # A lower bound on the true clearance when free.
-    assert np.all(np.asarray(certificate.clearance) <= dense_clearance(case2, published) + 1e-4)
+    assert np.all(np.asarray(certificate.clearance) <= dense_clearance(case2, paths) + 1e-4)
     assert np.all(np.asarray(certificate.clearance) >= 0)
-    batched = jaxarm.certify(case2, np.broadcast_to(published, (3, 2, 3)))
+    batched = jaxarm.certify(case2, np.broadcast_to(paths, (3, 2, 3)))
     assert batched.free.shape == (3, 2)
 
 
@@ -95,7 +97,7 @@ def test_certified_verdicts_do_not_depend_on_the_batch(rng):
 
 
 def test_margin_keeps_the_arm_away(case2):
-    x = np.array([[66.7388, -28.1028, -9.8855], [113.0533, -42.3741, -10.0300]])
+    x = a6_array(published.CASE_2_TABLE_3 + published.CASE_2_TABLE_4[:1])
     dense = dense_clearance(case2, x)
     for margin in (0.05, 0.1):  # the start posture is 0.17 cm from the circle
         kept = dense >= margin + 0.02

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import jaxarm
-from jaxarm import pso
+from jaxarm import pso, published
 from jaxarm.study import wilson_interval
 
 from oracles import oracle_separation
@@ -17,11 +17,11 @@ SMALL = dict(n_particles=8, n_iters=12)
 
 
 def test_init_particles_seed_the_swarm(case2):
-    known = [66.7388, -28.1028, -9.8855]  # paper Table 6, fitness 0.1946
-    result = jaxarm.solve(case2, "A", n_restarts=3, init_particles=[known], **SMALL)
+    known = published.CASE_2_TABLE_3[0]  # paper Table 6's third initial particle
+    result = jaxarm.solve(case2, "A", n_restarts=3, init_particles=[known.a6], **SMALL)
     assert np.all(result.restarts.escape_iter == 0)
-    assert np.all(result.restarts.best_fitness >= 0.1946)
-    assert np.all(result.restarts.history[:, 0] >= 0.1946)
+    assert np.all(result.restarts.best_fitness >= known.fitness)
+    assert np.all(result.restarts.history[:, 0] >= known.fitness)
     with pytest.raises(ValueError, match=r"init_particles must have shape \(n_given <= 8, 3\)"):
         jaxarm.solve(case2, init_particles=np.zeros((2, 4)), **SMALL)
 
@@ -78,12 +78,15 @@ def _escape_rate(problem, method, constraint, n_restarts=200):
     return float(np.mean(result.restarts.escape_iter >= 0))
 
 
-PAPER_3_OF_7 = wilson_interval(3, 7)  # Table 2: 3 of 7 runs escaped, per preset
+def paper_interval(method: str) -> tuple[float, float]:
+    """95 % interval of the paper's Table 2 escapes (3 of 7 runs for every preset)."""
+    return wilson_interval(published.CASE_1_ESCAPES[method], published.CASE_1_RUNS)
 
 
 def test_case_1_death_penalty_escape_is_consistent_with_the_papers_3_of_7_for_a(case1):
     rate = _escape_rate(case1, "A", "death")
-    assert PAPER_3_OF_7[0] <= rate <= PAPER_3_OF_7[1], rate
+    low, high = paper_interval("A")
+    assert low <= rate <= high, rate
 
 
 @pytest.mark.parametrize("fixture", ["case2", "case3"])
@@ -97,7 +100,8 @@ def test_feasibility_rules_escape_on_cases_2_and_3(fixture, request):
 @pytest.mark.parametrize("method", ["B", "C"])
 def test_case_1_death_penalty_escape_is_consistent_with_the_papers_3_of_7(case1, method):
     rate = _escape_rate(case1, method, "death")
-    assert PAPER_3_OF_7[0] <= rate <= PAPER_3_OF_7[1], rate
+    low, high = paper_interval(method)
+    assert low <= rate <= high, rate
 
 
 def test_solve_with_refine_is_never_worse(case2):

@@ -84,9 +84,7 @@ def load_scenario(name_or_path: str | pathlib.Path, **overrides) -> Problem:
     try:
         problem = _problem(data, default_name=pathlib.Path(source).stem)
         return problem.replace(**overrides) if overrides else problem
-    except ScenarioError as error:
-        raise ScenarioError(f"{source}: {error}") from None
-    except (ValueError, TypeError) as error:
+    except (ValueError, TypeError) as error:  # ScenarioError is a ValueError
         raise ScenarioError(f"{source}: {error}") from None
 
 
