@@ -7,9 +7,13 @@ line to stderr and exit with status 2; ``--debug`` shows the traceback instead.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
+import os
 import pathlib
 import sys
+import tempfile
 
 from jaxarm.choices import COLLISION_MODES, CONSTRAINTS, PRESET_NAMES
 
@@ -55,6 +59,18 @@ def build_parser() -> argparse.ArgumentParser:
         description="Smooth collision-free joint paths for planar arms by batched PSO (JAX).",
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    processes = parser.add_argument_group(
+        "several processes or machines",
+        "Run the same command in every process; restarts are split over all of them, every "
+        "process computes the same result, process 0 prints and writes files. "
+        "JAXARM_DISTRIBUTED=1 without these flags uses jax.distributed's own detection "
+        "(SLURM, ...).")
+    processes.add_argument("--coordinator", metavar="HOST:PORT",
+                           help="address of process 0's coordination service")
+    processes.add_argument("--num-processes", type=_positive, metavar="N",
+                           help="how many processes take part")
+    processes.add_argument("--process-id", type=int, metavar="I",
+                           help="this process's number, 0 .. N-1")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     commands.add_parser("scenarios", help="list the shipped scenarios",
@@ -175,10 +191,46 @@ COMMANDS = {"scenarios": _scenarios, "solve": _solve, "study": _study,
             "reproduce-paper": _reproduce}
 
 
+def _join_processes(args) -> bool:
+    """Start ``jax.distributed`` when asked; True if this process prints and writes files."""
+    explicit = (args.coordinator, args.num_processes, args.process_id)
+    if not any(v is not None for v in explicit):
+        if os.environ.get("JAXARM_DISTRIBUTED") != "1":
+            return True
+    elif any(v is None for v in explicit):
+        raise ValueError("--coordinator, --num-processes and --process-id go together, got "
+                         f"{args.coordinator!r}, {args.num_processes!r}, {args.process_id!r}")
+    elif not 0 <= args.process_id < args.num_processes:
+        raise ValueError(f"--process-id must be in [0, {args.num_processes}), "
+                         f"got {args.process_id}")
+    import jax
+
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")  # CPU needs it; GPUs ignore it
+    try:
+        jax.distributed.initialize(coordinator_address=args.coordinator,
+                                   num_processes=args.num_processes, process_id=args.process_id)
+    except RuntimeError as error:
+        raise ValueError(f"cannot join the other processes: {error}") from None
+    return jax.process_index() == 0
+
+
+def _run(args) -> None:
+    if _join_processes(args):
+        COMMANDS[args.command](args)
+        return
+    for name in ("json", "csv", "plot", "gif"):  # only process 0 writes
+        if hasattr(args, name):
+            setattr(args, name, None)
+    with tempfile.TemporaryDirectory() as scratch, contextlib.redirect_stdout(io.StringIO()):
+        if args.command == "reproduce-paper":
+            args.out = pathlib.Path(scratch)
+        COMMANDS[args.command](args)
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        COMMANDS[args.command](args)
+        _run(args)
     except (ValueError, OSError) as error:
         if args.debug:
             raise

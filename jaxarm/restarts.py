@@ -127,9 +127,10 @@ def restart_ids(first_restart: int, n_restarts: int) -> jax.Array:
 
     The ids are padded to a multiple of 8 per device (the extra restarts are computed and
     dropped); with d devices they are split along a one-axis mesh, so each device runs its share
-    of the restarts; each restart's result is the same on 1 or d devices. Under multi-host JAX
-    (``jax.distributed.initialize()`` first), ``jax.devices()`` spans every host and the same
-    mesh spreads restarts across them.
+    of the restarts; each restart's result is the same on 1 or d devices. Under multi-process
+    JAX (``jax.distributed.initialize()`` first), ``jax.devices()`` spans every process and the
+    same mesh spreads restarts across them; ``run_restarts`` gathers the results onto every
+    process.
     """
     devices = jax.devices()
     # Padding to a multiple of 8 restarts per device keeps every call on the same vectorised
@@ -142,7 +143,17 @@ def restart_ids(first_restart: int, n_restarts: int) -> jax.Array:
         return jnp.asarray(ids)
     mesh = jax.sharding.Mesh(np.array(devices), ("restarts",))
     sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("restarts"))
-    return jax.device_put(ids, sharding)
+    # Each process places only the ids of its own devices (the same call works on one process).
+    return jax.make_array_from_callback(ids.shape, sharding, lambda index: ids[index])
+
+
+def to_host(array: jax.Array) -> np.ndarray:
+    """A (possibly multi-process) array as one NumPy array, the same on every process."""
+    if array.is_fully_addressable:
+        return np.asarray(array)
+    from jax.experimental import multihost_utils
+
+    return np.asarray(multihost_utils.process_allgather(array, tiled=True))
 
 
 def run_restarts(problem: Problem, config: pso.PSOConfig, constraint: str, n_particles: int,
@@ -155,4 +166,4 @@ def run_restarts(problem: Problem, config: pso.PSOConfig, constraint: str, n_par
         jnp.int32(seed), restart_ids(first_restart, n_restarts), init_particles,
         n_particles=n_particles, n_iters=n_iters, constraint=constraint,
     )
-    return RestartOutcome(*(np.asarray(a)[:n_restarts] for a in outcome))
+    return RestartOutcome(*(to_host(a)[:n_restarts] for a in outcome))

@@ -52,6 +52,11 @@ def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
         (["solve", "paper-case-2", "--degree", "4"], "degree must be >= 6, got 4"),
         (["study", "paper-case-2", "--methods", "A,Z"], "method must be one of"),
         (["solve", "paper-case-2", "--seed", "-3"], "seed must be an integer"),
+        (["study", "paper-case-2", "--methods", "A,A"], "unique labels, got 'A' twice"),
+        (["--coordinator", "127.0.0.1:1", "solve", "paper-case-2"],
+         "--coordinator, --num-processes and --process-id go together"),
+        (["--coordinator", "127.0.0.1:1", "--num-processes", "2", "--process-id", "2", "solve",
+          "paper-case-2"], r"--process-id must be in [0, 2), got 2"),
     ],
 )
 def test_cli_errors_are_one_line_without_traceback(capsys, argv, message):

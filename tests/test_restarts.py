@@ -119,3 +119,33 @@ def test_any_optimiser_with_an_init_step_pair_runs_in_the_restart_loop():
     assert int(escape_iter) >= 0  # P(no sample with x[0] > 0.5 in 126) = 0.75 ** 126
     escape_fitness = -np.sum((np.asarray(escape_x) - 0.3) ** 2)
     assert escape_fitness == pytest.approx(float(history[int(escape_iter)]))
+
+
+def test_two_processes_return_what_one_process_returns(case2, tmp_path):
+    """``jaxarm --coordinator ... solve``: two local CPU processes (gloo), process 0 writes."""
+    import json
+    import os
+    import socket
+    import subprocess
+    import sys
+
+    with socket.socket() as probe:  # a free port on 127.0.0.1
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    out = tmp_path / "two_processes.json"
+    env = dict(os.environ, JAX_PLATFORMS="cpu")
+    env.pop("XLA_FLAGS", None)
+    processes = [subprocess.Popen(
+        [sys.executable, "-m", "jaxarm", "--coordinator", f"127.0.0.1:{port}",
+         "--num-processes", "2", "--process-id", str(i), "solve", "paper-case-2",
+         "--collision", "sampled", "--particles", "8", "--iters", "12", "--restarts", "7",
+         "--seed", "4", "--constraint", "feasibility", "--json", str(out)],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for i in (0, 1)]
+    outputs = [p.communicate(timeout=300) for p in processes]
+    assert [p.returncode for p in processes] == [0, 0], [err[-2000:] for _, err in outputs]
+    assert f"wrote {out}" in outputs[0][0] and "fitness" in outputs[0][0]
+    assert "wrote" not in outputs[1][0] and "fitness" not in outputs[1][0]  # 1 stays quiet
+    two = jaxarm.Result.from_dict(json.loads(out.read_text()))
+    one = jaxarm.solve(case2, "A", n_restarts=7, seed=4, constraint="feasibility", **SMALL)
+    for name in one.restarts._fields:
+        np.testing.assert_array_equal(getattr(two.restarts, name), getattr(one.restarts, name))
