@@ -19,6 +19,7 @@ _EXPORTS = {
     "Arm": "jaxarm.arm",
     "inverse_kinematics": "jaxarm.arm",
     "joint_positions": "jaxarm.arm",
+    "enable_compilation_cache": "jaxarm.cache",
     "COLLISION_MODES": "jaxarm.choices",
     "CONSTRAINTS": "jaxarm.choices",
     "Certificate": "jaxarm.problem",

@@ -59,6 +59,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Smooth collision-free joint paths for planar arms by batched PSO (JAX).",
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument("--no-cache", action="store_true",
+                        help="do not keep compiled programs on disk (default: keep them in "
+                             "$JAXARM_CACHE_DIR, else ~/.cache/jaxarm/xla)")
     processes = parser.add_argument_group(
         "several processes or machines",
         "Run the same command in every process; restarts are split over all of them, every "
@@ -215,6 +218,10 @@ def _join_processes(args) -> bool:
 
 
 def _run(args) -> None:
+    if not args.no_cache:
+        from jaxarm.cache import enable_compilation_cache
+
+        enable_compilation_cache()
     if _join_processes(args):
         COMMANDS[args.command](args)
         return

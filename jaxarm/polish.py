@@ -120,6 +120,10 @@ def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weig
     x = _as_params(problem, x)
     leading = x.shape[:-1]
     batch = x.reshape(-1, problem.n_free)
+    if batch.shape[0] == 0:  # nothing to polish (e.g. no feasible restart): no kernel call
+        zeros = np.zeros(leading, np.asarray(x).dtype)
+        return RefineResult(np.asarray(x), zeros, zeros, np.zeros(leading, np.int32),
+                            np.zeros(leading + (int(n_steps) + 1,), zeros.dtype))
     optimizer = optimizer or DEFAULT_OPTIMIZER
     out = _compiled_refine(problem.spec, problem.arrays, batch, optimizer, int(n_steps),
                            barrier_weight, margin, temperature)

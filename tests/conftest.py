@@ -3,6 +3,8 @@
 import os
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
+# Tests do not read or fill the user's compilation cache unless asked (tests/test_cache.py).
+os.environ.setdefault("JAXARM_CACHE_DIR", "off")
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402

@@ -55,3 +55,10 @@ def test_refine_leaves_a_colliding_path_alone(case2):
     polished = jaxarm.refine(case2, [0.0, 0.0, 0.0])  # blocked by the obstacle
     np.testing.assert_array_equal(polished.x, [0.0, 0.0, 0.0])
     assert polished.fitness == 0 and polished.n_accepted == 0
+
+
+def test_refine_of_no_paths_is_empty(case2):
+    """``solve(refine="all")`` and the report polish every feasible restart; there may be none."""
+    polished = jaxarm.refine(case2, np.zeros((0, 3)), n_steps=5)
+    assert polished.x.shape == (0, 3) and polished.fitness.shape == (0,)
+    assert polished.history.shape == (0, 6) and polished.n_accepted.dtype == np.int32

@@ -1,0 +1,59 @@
+"""The persistent compilation cache (``jaxarm.cache``): where it lives, that it is used, off."""
+
+import os
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+from jaxarm import cache
+
+SOLVE = ("import jaxarm, numpy as np; {enable}"
+         "r = jaxarm.solve(jaxarm.load_scenario('paper-case-2', collision='sampled'), 'A', "
+         "n_particles=8, n_iters=12, n_restarts=3, seed=1); "
+         "print(repr(r.restarts.best_x.tolist()))")
+
+
+def test_cache_dir_follows_the_environment(monkeypatch, tmp_path):
+    monkeypatch.setenv("JAXARM_CACHE_DIR", str(tmp_path / "mine"))
+    assert cache.cache_dir() == tmp_path / "mine"
+    for off in ("off", "0", ""):
+        monkeypatch.setenv("JAXARM_CACHE_DIR", off)
+        assert cache.cache_dir() is None and cache.enable_compilation_cache() is None
+    monkeypatch.delenv("JAXARM_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    if sys.platform.startswith("linux"):
+        assert cache.cache_dir() == tmp_path / "xdg" / "jaxarm" / "xla"
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    with pytest.raises(ValueError, match="compilation cache directory .*file/xla"):
+        cache.enable_compilation_cache(blocker / "xla")
+
+
+def _run(code: str, **env) -> str:
+    done = subprocess.run([sys.executable, "-c", code], env=dict(os.environ, **env),
+                          capture_output=True, text=True, timeout=300, check=True)
+    return done.stdout.strip().splitlines()[-1]
+
+
+def test_a_second_process_reads_the_programs_the_first_wrote(tmp_path):
+    folder = tmp_path / "xla"
+    code = SOLVE.format(enable="jaxarm.enable_compilation_cache(); ")
+    first = _run(code, JAXARM_CACHE_DIR=str(folder))
+    written = sorted(p.name for p in folder.iterdir())
+    assert any(name.startswith("jit_search_restarts") for name in written), written
+    second = _run(code, JAXARM_CACHE_DIR=str(folder))
+    assert second == first  # the same program, the same bits
+    assert sorted(p.name for p in folder.iterdir()) == written  # nothing compiled anew
+
+
+def test_the_cli_caches_by_default_and_not_with_no_cache(tmp_path):
+    argv = [sys.executable, "-m", "jaxarm", "solve", "paper-case-2", "--collision", "sampled",
+            "--particles", "8", "--iters", "12"]
+    for flag, folder in (([], tmp_path / "on"), (["--no-cache"], tmp_path / "off")):
+        env = dict(os.environ, JAXARM_CACHE_DIR=str(folder))
+        subprocess.run(argv[:3] + flag + argv[3:], env=env, check=True, capture_output=True,
+                       timeout=300)
+        files = list(pathlib.Path(folder).glob("*")) if folder.exists() else []
+        assert bool(files) == (not flag), (flag, files)
