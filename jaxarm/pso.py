@@ -300,7 +300,12 @@ def _info(state: SwarmState, scored: Scored) -> StepInfo:
 ConstraintRule = Callable[[jax.Array, jax.Array], Scored]
 
 
-def constraint_rule(constraint: str) -> ConstraintRule:
+def constraint_index(constraint: str) -> int:
+    """The rule's position in ``CONSTRAINTS``: how a compiled search receives it, as data."""
+    return CONSTRAINTS.index(one_of("constraint", constraint, CONSTRAINTS))
+
+
+def constraint_rule(constraint) -> ConstraintRule:
     """How paths are ranked under a constraint-handling rule: ``(fitness, violation) -> Scored``.
 
     - ``"death"`` (the paper's death penalty): score = fitness, 0 for any colliding path, so an
@@ -309,19 +314,21 @@ def constraint_rule(constraint: str) -> ConstraintRule:
       among feasible paths higher fitness wins; among infeasible ones, less violation wins.
       As one number: ``fitness`` if feasible, else ``-violation``.
 
-    The returned function takes fitness and violation of shape (n,) and returns ``Scored``
-    with arrays of shape (n,).
+    ``constraint`` is a name or its ``constraint_index`` (a traced int32 under jit, so one
+    compiled program serves every rule). The returned function takes fitness and violation of
+    shape (n,) and returns ``Scored`` with arrays of shape (n,).
 
     Example:
       >>> rule = constraint_rule("feasibility")
       >>> rule(jnp.array([0.2, 0.0]), jnp.array([0.0, 3.0])).score.tolist()
       [0.2, -3.0]
     """
-    one_of("constraint", constraint, CONSTRAINTS)
+    index = constraint_index(constraint) if isinstance(constraint, str) else constraint
 
     def rule(fitness, violation) -> Scored:
         feasible = violation == 0
-        score = fitness if constraint == "death" else jnp.where(feasible, fitness, -violation)
+        by_violation = (index == CONSTRAINTS.index("feasibility")) & ~feasible
+        score = jnp.where(by_violation, -violation, fitness)
         return Scored(score=score, fitness=fitness, feasible=feasible)
 
     return rule

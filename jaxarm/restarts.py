@@ -4,8 +4,8 @@ Restarts are vmapped (and sharded over all devices when there are several), iter
 ``lax.scan``. Restart i draws everything from ``fold_in(key(seed), i)`` (and iteration t from
 ``fold_in`` of that with t), so its result does not depend on how many restarts run beside it or
 how they are chunked. The compiled program is specialised only on sizes and modes
-(``ProblemSpec``, particles, iterations, restarts, the constraint rule and the swarm's rules);
-angles, obstacles, PSO coefficients, the init range and the seed are data, so a new scenario or
+(``ProblemSpec``, particles, iterations, restarts and the swarm's rules); angles, obstacles,
+PSO coefficients, the constraint rule, the init range and the seed are data, so a new scenario or
 preset reuses it.
 
 ``run_restart`` knows nothing about PSO: any optimiser given as a ``pso.Swarm`` pair whose info
@@ -79,8 +79,8 @@ def run_restart(key, swarm: pso.Swarm, n_iters: int) -> tuple[jax.Array, ...]:
 
 
 def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOParams,
-                    rules: pso.SwarmRules, low, high, seed, restart_ids, init_particles, *,
-                    n_particles: int, n_iters: int, constraint: str) -> RestartOutcome:
+                    rules: pso.SwarmRules, low, high, seed, restart_ids, init_particles,
+                    constraint, *, n_particles: int, n_iters: int) -> RestartOutcome:
     """Run the PSO restarts numbered ``restart_ids`` (pure; ``compiled_search`` is its jit).
 
     Args:
@@ -90,6 +90,8 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
       seed: int32 scalar.
       restart_ids: int32, shape (n_restarts,); restart i uses ``fold_in(key(seed), i)``.
       init_particles: None or shape (n_given, n_free).
+      constraint: int32 scalar, ``pso.constraint_index`` of the rule (data: death and
+        feasibility rules share one program).
 
     Returns:
       ``RestartOutcome`` with leading axis n_restarts.
@@ -115,7 +117,7 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
 
 
 compiled_search = jax.jit(
-    search_restarts, static_argnames=("spec", "rules", "n_particles", "n_iters", "constraint")
+    search_restarts, static_argnames=("spec", "rules", "n_particles", "n_iters")
 )
 
 
@@ -164,6 +166,6 @@ def run_restarts(problem: Problem, config: pso.PSOConfig, constraint: str, n_par
     outcome = compiled_search(
         problem.spec, problem.arrays, config.params(), config.rules(), low, high,
         jnp.int32(seed), restart_ids(first_restart, n_restarts), init_particles,
-        n_particles=n_particles, n_iters=n_iters, constraint=constraint,
+        jnp.int32(pso.constraint_index(constraint)), n_particles=n_particles, n_iters=n_iters,
     )
     return RestartOutcome(*(to_host(a)[:n_restarts] for a in outcome))

@@ -62,3 +62,17 @@ def test_refine_of_no_paths_is_empty(case2):
     polished = jaxarm.refine(case2, np.zeros((0, 3)), n_steps=5)
     assert polished.x.shape == (0, 3) and polished.fitness.shape == (0,)
     assert polished.history.shape == (0, 6) and polished.n_accepted.dtype == np.int32
+
+
+def test_refine_compiles_once_and_rows_do_not_depend_on_their_neighbours(
+        feasible_case2_paths):
+    from jaxarm import polish
+
+    rows = np.asarray(feasible_case2_paths)
+    few = jaxarm.refine(jaxarm.load_scenario("paper-case-2"), rows[:3], n_steps=5)
+    before = polish._compiled_refine._cache_size()
+    many = jaxarm.refine(jaxarm.load_scenario("paper-case-2"),
+                         np.concatenate([rows[:3], rows[:3], rows[:3] + 1.0]), n_steps=5)
+    assert polish._compiled_refine._cache_size() == before  # 3 and 9 rows: the same program
+    np.testing.assert_array_equal(many.x[:3], few.x)
+    np.testing.assert_array_equal(many.fitness[3:6], few.fitness)

@@ -39,8 +39,8 @@ def test_jit_equals_no_jit_on_one_restart(case2):
     config = pso.PRESETS["C"]
     args = (case2.spec, case2.arrays, config.params(), config.rules(),
             *(jnp.asarray(b, jnp.float32) for b in case2.bounds()), jnp.int32(0),
-            jnp.zeros(1, jnp.int32), None)
-    sizes = dict(n_particles=4, n_iters=2, constraint="feasibility")
+            jnp.zeros(1, jnp.int32), None, jnp.int32(pso.constraint_index("feasibility")))
+    sizes = dict(n_particles=4, n_iters=2)
     jitted = compiled_search(*args, **sizes)
     with jax.disable_jit():
         eager = restarts.search_restarts(*args, **sizes)
@@ -53,6 +53,7 @@ def test_a_second_problem_with_the_same_sizes_does_not_recompile(case2, case3):
     before = compiled_search._cache_size()
     jaxarm.solve(case3, "B", n_restarts=2, seed=5, **SMALL)  # new data, new preset, new seed
     jaxarm.solve(case2.replace(start=[5.7, 1.2, 0.7]), "C", n_restarts=2, **SMALL)
+    jaxarm.solve(case2, "A", n_restarts=2, constraint="feasibility", **SMALL)  # rule is data
     assert compiled_search._cache_size() == before
 
 
