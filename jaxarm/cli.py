@@ -221,7 +221,10 @@ def _run(args) -> None:
     if not args.no_cache:
         from jaxarm.cache import enable_compilation_cache
 
-        enable_compilation_cache()
+        try:
+            enable_compilation_cache()
+        except ValueError as error:  # an unwritable cache slows the command, nothing more
+            print(f"jaxarm: warning: no compilation cache: {error}", file=sys.stderr)
     if _join_processes(args):
         COMMANDS[args.command](args)
         return

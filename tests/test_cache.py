@@ -57,3 +57,15 @@ def test_the_cli_caches_by_default_and_not_with_no_cache(tmp_path):
                        timeout=300)
         files = list(pathlib.Path(folder).glob("*")) if folder.exists() else []
         assert bool(files) == (not flag), (flag, files)
+
+
+def test_an_unwritable_cache_is_a_warning_not_a_failure(capsys, monkeypatch, tmp_path):
+    from jaxarm import cli
+
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    monkeypatch.setenv("JAXARM_CACHE_DIR", str(blocker / "xla"))
+    assert cli.main(["scenarios"]) == 0
+    out, err = capsys.readouterr()
+    assert "paper-case-1" in out
+    assert err.startswith("jaxarm: warning: no compilation cache: compilation cache directory")
