@@ -7,6 +7,7 @@ import numpy as np
 import shapely
 
 import jaxarm
+from jaxarm.oracle import link_segments
 
 
 CAPACITIES = (4, 8, 8)
@@ -64,17 +65,15 @@ def random_world_problems(rng, n_worlds):
     return problems
 
 
-def joint_positions_along(problem, x, n_samples):
-    r = np.linspace(0.0, 1.0, n_samples)
-    theta = jaxarm.joint_path(problem, x, r)
-    return np.asarray(jaxarm.joint_positions(problem.arm.lengths, theta), dtype=np.float64)
-
-
 def oracle_path_collides(problem, x, n_samples):
-    """Per path: does any link's interior meet any obstacle's at any of n_samples samples."""
-    positions = joint_positions_along(problem, x, n_samples)  # (paths, samples, joints + 1, 2)
-    start, end = positions[..., :-1, :], positions[..., 1:, :]
-    _, hit = oracle_separation(problem.world, start.reshape(-1, 2), end.reshape(-1, 2))
+    """Per path: does any link's interior meet any obstacle's at any of n_samples samples.
+
+    The links come from ``jaxarm.oracle.link_segments`` (float64 NumPy, its own kinematics),
+    not from the kernels under test.
+    """
+    segments = link_segments(problem, np.asarray(x), n_samples)  # (paths, samples, links, 2, 2)
+    _, hit = oracle_separation(problem.world, segments[..., 0, :].reshape(-1, 2),
+                               segments[..., 1, :].reshape(-1, 2))
     return hit.reshape(len(x), -1).any(axis=-1)
 
 
