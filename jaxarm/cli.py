@@ -208,7 +208,7 @@ def _join_processes(args) -> bool:
                          f"got {args.process_id}")
     import jax
 
-    jax.config.update("jax_cpu_collectives_implementation", "gloo")  # CPU needs it; GPUs ignore it
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")  # collectives on CPU
     try:
         jax.distributed.initialize(coordinator_address=args.coordinator,
                                    num_processes=args.num_processes, process_id=args.process_id)
