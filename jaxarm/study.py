@@ -60,20 +60,19 @@ def parse_variants(methods: Sequence, constraint: str) -> list[Variant]:
     variants, n_custom = [], 0
     for method in methods:
         if isinstance(method, Variant):
+            one_of("constraint", method.constraint, CONSTRAINTS)
             variant = method._replace(config=pso.resolve(method.config))
-            one_of("constraint", variant.constraint, CONSTRAINTS)
-        elif isinstance(method, str):
-            name, colon, rule = method.partition(":")
-            rule = one_of("constraint", rule if colon else constraint, CONSTRAINTS)
-            label = name if rule == "death" else f"{name}:{rule}"
-            variant = Variant(label, pso.resolve(name), rule)
         else:
-            config = pso.resolve(method)
-            n_custom += 1
-            name = "custom" if n_custom == 1 else f"custom-{n_custom}"
-            one_of("constraint", constraint, CONSTRAINTS)
-            label = name if constraint == "death" else f"{name}:{constraint}"
-            variant = Variant(label, config, constraint)
+            if isinstance(method, str):
+                name, colon, rule = method.partition(":")
+                rule = one_of("constraint", rule if colon else constraint, CONSTRAINTS)
+                config = pso.resolve(name)
+            else:
+                rule = one_of("constraint", constraint, CONSTRAINTS)
+                config = pso.resolve(method)
+                n_custom += 1
+                name = "custom" if n_custom == 1 else f"custom-{n_custom}"
+            variant = Variant(name if rule == "death" else f"{name}:{rule}", config, rule)
         if any(v.label == variant.label for v in variants):
             raise ValueError(f"methods must have unique labels, got {variant.label!r} twice")
         variants.append(variant)
