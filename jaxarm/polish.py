@@ -85,7 +85,7 @@ def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, tem
 
 # One default instance: the optimizer is a static argument, so reusing it reuses the program.
 DEFAULT_OPTIMIZER = optax.adam(0.2)
-REFINE_BLOCK = 16  # rows per compiled call
+REFINE_BLOCK = 16  # the smallest padded batch
 
 _compiled_refine = jax.jit(
     jax.vmap(_refine_one, in_axes=(None, None, 0, None, None, None, None, None)),
@@ -126,13 +126,11 @@ def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weig
         return RefineResult(np.asarray(x), zeros, zeros, np.zeros(leading, np.int32),
                             np.zeros(leading + (int(n_steps) + 1,), zeros.dtype))
     optimizer = optimizer or DEFAULT_OPTIMIZER
-    # Fixed blocks of rows (the last one padded with copies of its last row): one compiled
-    # program per problem spec whatever the batch size, and a row's result does not depend on
-    # the rows beside it.
+    # The batch padded (with copies of its last row) to a power of two >= 16: a few compiled
+    # programs per problem shape, whatever the batch size, in one vectorised call.
     n_rows = batch.shape[0]
-    padded = jnp.concatenate([batch, jnp.repeat(batch[-1:], -n_rows % REFINE_BLOCK, axis=0)])
-    parts = [_compiled_refine(problem.spec, problem.arrays, padded[i:i + REFINE_BLOCK],
-                              optimizer, int(n_steps), barrier_weight, margin, temperature)
-             for i in range(0, padded.shape[0], REFINE_BLOCK)]
-    return RefineResult(*(np.concatenate([np.asarray(a) for a in field])[:n_rows]
-                          .reshape(leading + field[0].shape[1:]) for field in zip(*parts)))
+    n_padded = max(REFINE_BLOCK, 1 << (n_rows - 1).bit_length())
+    padded = jnp.concatenate([batch, jnp.repeat(batch[-1:], n_padded - n_rows, axis=0)])
+    out = _compiled_refine(problem.spec, problem.arrays, padded, optimizer, int(n_steps),
+                           barrier_weight, margin, temperature)
+    return RefineResult(*(np.asarray(a)[:n_rows].reshape(leading + a.shape[1:]) for a in out))

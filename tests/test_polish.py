@@ -64,7 +64,7 @@ def test_refine_of_no_paths_is_empty(case2):
     assert polished.history.shape == (0, 6) and polished.n_accepted.dtype == np.int32
 
 
-def test_refine_compiles_once_and_rows_do_not_depend_on_their_neighbours(
+def test_refine_shares_programs_and_rows_do_not_depend_on_their_neighbours(
         feasible_case2_paths):
     from jaxarm import polish
 
@@ -76,3 +76,5 @@ def test_refine_compiles_once_and_rows_do_not_depend_on_their_neighbours(
     assert polish._compiled_refine._cache_size() == before  # 3 and 9 rows: the same program
     np.testing.assert_array_equal(many.x[:3], few.x)
     np.testing.assert_array_equal(many.fitness[3:6], few.fitness)
+    wide = jaxarm.refine(jaxarm.load_scenario("paper-case-2"), rows[:40], n_steps=5)  # 64 rows
+    np.testing.assert_array_equal(wide.x[:3], few.x)

@@ -1,0 +1,28 @@
+"""How many programs the quick report compiles: the search's and refine's jit caches afterwards.
+
+Runs ``reproduce_paper(quick=True)`` in this process (into a scratch folder, no persistent
+cache) and prints the number of compiled ``search`` and ``refine`` programs and the wall time.
+
+    JAXARM_CACHE_DIR=off .venv/bin/python benchmarks/compile_count.py
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+
+from jaxarm import polish
+from jaxarm.reproduce import reproduce_paper
+from jaxarm.restarts import compiled_search
+
+
+def main():
+    began = time.perf_counter()
+    with tempfile.TemporaryDirectory() as out:
+        reproduce_paper(out, quick=True)
+    print(f"search programs {compiled_search._cache_size()}, refine programs "
+          f"{polish._compiled_refine._cache_size()}, {time.perf_counter() - began:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
