@@ -345,7 +345,8 @@ def fitness(problem: Problem, x) -> jax.Array:
 
 
 def violation(problem: Problem, x) -> jax.Array:
-    """How much a path collides (cm, about the integral over r of the penetration depth).
+    """How much a path collides (cm: the deepest penetration found, see ``jaxarm.collision``
+    and ``jaxarm.certified``).
 
     Args:
       x: free parameters, shape (..., n_free).

@@ -5,9 +5,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import shapely
 
 import jaxarm
 from jaxarm import collision, path
+from jaxarm.oracle import link_segments
 
 from oracles import oracle_path_collides, random_world_problems
 
@@ -22,6 +24,35 @@ def test_sampled_check_agrees_with_shapely_on_the_same_samples(rng):
         np.testing.assert_array_equal((ours > 0)[decided], oracle[decided])
         agreed += decided.sum()
     assert agreed > 900
+
+
+def test_violation_is_the_deepest_penetration_found_at_a_sample(rng):
+    """Circles only, where shapely's distances give depths: sampled, the depths summed over
+    links and circles at a sample, the deepest sample; certified (a path colliding at a
+    sample), the nearest link's depth at the deepest sample."""
+    arm = jaxarm.Arm((30.0, 30.0, 20.0))
+    checked = 0
+    for _ in range(6):
+        world = jaxarm.World(circles=[(*rng.uniform(-50, 50, 2), rng.uniform(3, 12))
+                                      for _ in range(3)])
+        try:
+            problem = jaxarm.Problem(arm=arm, start=[-1.0, 1.2, 0.8], goal=[1.2, -0.6, 1.0],
+                                     world=world, init_low=-60.0, init_high=60.0)
+        except ValueError:
+            continue
+        x = rng.uniform(-60, 60, (30, problem.n_free))
+        segments = link_segments(problem, x, problem.n_samples)  # (paths, samples, links, 2, 2)
+        lines = shapely.linestrings(segments.reshape(-1, 2, 2))
+        depth = np.stack([np.maximum(radius - shapely.distance(lines, shapely.Point(cx, cy)), 0)
+                          for cx, cy, radius in world.circles], axis=-1)
+        depth = depth.reshape(*segments.shape[:3], -1)  # (paths, samples, links, circles)
+        sampled = np.asarray(jaxarm.violation(problem.replace(collision="sampled"), x))
+        np.testing.assert_allclose(sampled, depth.sum(axis=(2, 3)).max(axis=1), atol=2e-4)
+        hit = depth.max(axis=(1, 2, 3)) > 1e-3
+        certified = np.asarray(jaxarm.violation(problem.replace(collision="certified"), x))
+        np.testing.assert_allclose(certified[hit], depth.max(axis=(1, 2, 3))[hit], atol=2e-4)
+        checked += hit.sum()
+    assert checked > 20
 
 
 @pytest.mark.parametrize("degree", [6, 8])
