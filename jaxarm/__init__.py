@@ -38,6 +38,7 @@ _EXPORTS = {
     "ScenarioError": "jaxarm.scenarios",
     "available_scenarios": "jaxarm.scenarios",
     "load_scenario": "jaxarm.scenarios",
+    "save_scenario": "jaxarm.scenarios",
     "RefineResult": "jaxarm.polish",
     "refine": "jaxarm.polish",
     "RestartOutcome": "jaxarm.restarts",

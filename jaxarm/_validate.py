@@ -64,7 +64,7 @@ def check_seed(value) -> int:
 
 def check_search(*, n_particles, n_iters, seed: int, constraint: str) -> None:
     """The arguments every search shares (``solve`` and studies), or a ValueError naming one."""
-    positive_int("n_particles", n_particles)
+    positive_int("n_particles", n_particles, minimum=2)  # one particle has no one to follow
     positive_int("n_iters", n_iters)
     check_seed(seed)
     one_of("constraint", constraint, CONSTRAINTS)

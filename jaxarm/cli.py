@@ -18,13 +18,27 @@ import tempfile
 from jaxarm.choices import COLLISION_MODES, CONSTRAINTS, PRESET_NAMES
 
 EXIT_ERROR = 2
+FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 
 
-def _positive(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
+def _version() -> str:
+    from jaxarm import __version__
+
+    return __version__
+
+
+def _at_least(minimum: int):
+    def parse(text: str) -> int:
+        value = int(text)
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be >= {minimum}, got {value}")
+        return value
+
+    parse.__name__ = "integer"  # argparse names the type in its messages
+    return parse
+
+
+_positive = _at_least(1)
 
 
 def _degrees(text: str) -> tuple[int, ...]:
@@ -37,11 +51,19 @@ def _degrees(text: str) -> tuple[int, ...]:
     return degrees
 
 
+def _add_common_options(parser: argparse.ArgumentParser) -> None:
+    # SUPPRESS: given after the subcommand it sets the flag, absent it keeps the main parser's
+    parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show tracebacks on errors")
+
+
 def _add_search_options(parser: argparse.ArgumentParser) -> None:
+    _add_common_options(parser)
     parser.add_argument("scenario", help="a shipped scenario name or a path to a .toml file")
     parser.add_argument("--constraint", default="death", choices=CONSTRAINTS,
                         help="constraint handling (default: death, the paper's)")
-    parser.add_argument("--particles", type=_positive, default=20, help="swarm size (20)")
+    parser.add_argument("--particles", type=_at_least(2), default=20,
+                        help="swarm size, >= 2 (20)")
     parser.add_argument("--iters", type=_positive, default=100, help="PSO iterations (100)")
     parser.add_argument("--seed", type=int, default=0, help="base seed (0)")
     parser.add_argument("--collision", choices=COLLISION_MODES,
@@ -50,7 +72,15 @@ def _add_search_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--margin", type=float,
                         help="clearance in cm every link keeps from obstacles (default: the "
                              "scenario's, else 0)")
-    parser.add_argument("--degree", type=int, help="polynomial degree (default: the scenario's)")
+    parser.add_argument("--degree", type=int,
+                        help="polynomial degree >= 6 (default: the scenario's)")
+    parser.add_argument("--samples", type=int,
+                        help="odd number of points of r (default: the scenario's, else 101)")
+    parser.add_argument("--init-low", type=float, metavar="LOW",
+                        help="low end of the initial swarm's range, every coefficient "
+                             "(default: the scenario's)")
+    parser.add_argument("--init-high", type=float, metavar="HIGH",
+                        help="high end of the initial swarm's range (default: the scenario's)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -58,6 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="jaxarm",
         description="Smooth collision-free joint paths for planar arms by batched PSO (JAX).",
     )
+    parser.add_argument("--version", action="version", version=f"jaxarm {_version()}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     parser.add_argument("--no-cache", action="store_true",
                         help="do not keep compiled programs on disk (default: keep them in "
@@ -76,8 +107,9 @@ def build_parser() -> argparse.ArgumentParser:
                            help="this process's number, 0 .. N-1")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    commands.add_parser("scenarios", help="list the shipped scenarios",
-                        description="List the shipped scenarios with one-line descriptions.")
+    _add_common_options(commands.add_parser(
+        "scenarios", help="list the shipped scenarios",
+        description="List the shipped scenarios with one-line descriptions."))
 
     solve = commands.add_parser("solve", help="search one scenario and print the best path",
                                 description="Run PSO restarts on a scenario; print a summary.")
@@ -85,25 +117,35 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--method", default="A", choices=PRESET_NAMES,
                        help="the paper's preset (A)")
     solve.add_argument("--restarts", type=_positive, default=1, help="independent swarms (1)")
-    solve.add_argument("--json", type=pathlib.Path, help="write the result as JSON")
-    solve.add_argument("--plot", type=pathlib.Path, help="write the motion as a PNG")
-    solve.add_argument("--gif", type=pathlib.Path, help="write an animation of the motion")
+    solve.add_argument("--refine", choices=("best", "all"),
+                       help="polish with gradient steps after PSO: the best restart, or every "
+                            "feasible one (default: no refinement)")
+    solve.add_argument("--json", type=pathlib.Path,
+                       help="write the result, the problem and the settings as JSON")
+    solve.add_argument("--plot", type=pathlib.Path,
+                       help="write the motion as a figure (.png, .pdf or .svg)")
+    solve.add_argument("--gif", type=pathlib.Path, help="write an animation of the motion (.gif)")
 
     study = commands.add_parser("study", help="escape probability over many seeds",
                                 description="Escape-probability study: every method over the "
-                                            "same seeds, with 95 %% Wilson intervals.")
+                                            "same seeds, with 95 % Wilson intervals.")
     _add_search_options(study)
     study.add_argument("--seeds", type=_positive, default=500, help="seeds per method (500)")
     study.add_argument("--methods", default="A,B,C",
                        help="comma-separated: A, B, C, or METHOD:CONSTRAINT (A,B,C)")
+    study.add_argument("--chunk-size", type=_positive, default=1000,
+                       help="restarts per compiled call; bounds memory, results do not depend "
+                            "on it (1000)")
     study.add_argument("--json", type=pathlib.Path, help="write summaries as JSON")
     study.add_argument("--csv", type=pathlib.Path, help="write per-seed records as CSV")
-    study.add_argument("--plot", type=pathlib.Path, help="write escape rates as a PNG")
+    study.add_argument("--plot", type=pathlib.Path,
+                       help="write escape rates as a figure (.png, .pdf or .svg)")
 
     reproduce = commands.add_parser(
         "reproduce-paper", help="run the paper's experiments and write a report",
         description="Tables 2-6 of the paper, a large escape study and the shipped suite; "
                     "writes OUT/report.md with tables and figures.")
+    _add_common_options(reproduce)
     reproduce.add_argument("--out", type=pathlib.Path, default=pathlib.Path("results"),
                            help="output folder (results)")
     reproduce.add_argument("--quick", action="store_true",
@@ -119,17 +161,46 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _check_outputs(args) -> None:
+    """Every output file's folder exists and every figure's suffix is known, before any work."""
+    suffixes = {"plot": FIGURE_SUFFIXES, "gif": (".gif",)}
+    for name in ("json", "csv", "plot", "gif"):
+        path = getattr(args, name, None)
+        if path is None:
+            continue
+        flag = f"--{name}"
+        if name in suffixes and path.suffix.lower() not in suffixes[name]:
+            raise ValueError(f"{flag} must end in {', '.join(suffixes[name])}, got {str(path)!r}")
+        if not path.parent.is_dir():
+            raise ValueError(f"{flag} {str(path)!r}: folder {str(path.parent)!r} does not exist")
+
+
+# Command-line flags that override a scenario's Problem fields; the error names the flag.
+_OVERRIDES = {"collision": "collision", "degree": "degree", "samples": "n_samples",
+              "margin": "margin", "init_low": "init_low", "init_high": "init_high"}
+
+
 def _load(args):
+    from jaxarm.problem import Problem
     from jaxarm.scenarios import load_scenario
 
-    overrides = {}
-    if args.collision:
-        overrides["collision"] = args.collision
-    if args.degree is not None:
-        overrides["degree"] = args.degree
-    if args.margin is not None:
-        overrides["margin"] = args.margin
-    return load_scenario(args.scenario, **overrides)
+    problem = load_scenario(args.scenario)
+    overrides = {field: getattr(args, flag) for flag, field in _OVERRIDES.items()
+                 if getattr(args, flag) is not None}
+    if "degree" in overrides:
+        kept = [field for field in ("init_low", "init_high")
+                if field not in overrides and isinstance(getattr(problem, field), tuple)]
+        if kept:
+            raise ValueError(f"--degree {args.degree}: {problem.name}'s {kept[0]} has one value "
+                             f"per coefficient of degree {problem.degree}; give --init-low "
+                             "and --init-high too")
+    for flag, field in _OVERRIDES.items():  # one at a time, so that the error names the flag
+        if field in overrides:
+            try:
+                Problem.replace(problem, **{field: overrides[field]})
+            except ValueError as error:
+                raise ValueError(f"--{flag.replace('_', '-')}: {error}") from None
+    return problem.replace(**overrides) if overrides else problem
 
 
 def _scenarios(args) -> None:
@@ -141,18 +212,30 @@ def _scenarios(args) -> None:
         print(f"{name:<{width}}  {description}")
 
 
+def _check_settings(args) -> None:
+    from jaxarm._validate import check_search
+
+    check_search(n_particles=args.particles, n_iters=args.iters, seed=args.seed,
+                 constraint=args.constraint)
+
+
 def _solve(args) -> None:
+    _check_outputs(args)
+    _check_settings(args)
+    problem = _load(args)
     from jaxarm import plot
     from jaxarm.search import solve
 
-    problem = _load(args)
-    result = solve(problem, args.method, n_particles=args.particles, n_iters=args.iters,
-                   n_restarts=args.restarts, seed=args.seed, constraint=args.constraint)
+    settings = dict(n_particles=args.particles, n_iters=args.iters, n_restarts=args.restarts,
+                    seed=args.seed, constraint=args.constraint,
+                    refine={None: False, "best": True, "all": "all"}[args.refine])
+    result = solve(problem, args.method, **settings)
     print(f"{problem.name}: {args.restarts} restart(s) x {args.particles} particles x "
           f"{args.iters} iterations")
     print(result.summary())
     if args.json:
-        args.json.write_text(json.dumps({"scenario": problem.name, **result.to_dict()}, indent=2))
+        args.json.write_text(json.dumps(_run_record(problem, args.method, settings, result),
+                                        indent=2, allow_nan=False))
         print(f"wrote {args.json}")
     if args.plot:
         plot.plot_motion(problem, result.best_x).savefig(args.plot, dpi=110)
@@ -162,14 +245,34 @@ def _solve(args) -> None:
         print(f"wrote {args.gif}")
 
 
-def _study(args) -> None:
-    from jaxarm import plot
-    from jaxarm.study import escape_study
+def _run_record(problem, method, settings: dict, result) -> dict:
+    """What ``solve --json`` writes: enough to re-run the search (the problem as a scenario
+    table, every setting, the versions) and the ``Result`` (``Result.from_dict`` reads
+    ``result`` back)."""
+    import jax
 
+    from jaxarm.scenarios import scenario_table
+
+    return {"jaxarm": _version(), "jax": jax.__version__, "scenario": problem.name,
+            "problem": scenario_table(problem), "method": method, "settings": settings,
+            "result": result.to_dict()}
+
+
+def _study(args) -> None:
+    _check_outputs(args)
+    _check_settings(args)
+    methods = [m.strip() for m in args.methods.split(",")]
+    if not all(methods):
+        raise ValueError(f"--methods must be comma-separated names such as A,B:feasibility, "
+                         f"got {args.methods!r}")
     problem = _load(args)
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    from jaxarm import plot
+    from jaxarm.study import escape_study, parse_variants
+
+    parse_variants(methods, args.constraint)  # names checked before any compilation
     result = escape_study(problem, methods, n_seeds=args.seeds, n_iters=args.iters,
-                          n_particles=args.particles, constraint=args.constraint, seed=args.seed)
+                          n_particles=args.particles, constraint=args.constraint, seed=args.seed,
+                          chunk_size=args.chunk_size)
     print(f"{problem.name}: {args.seeds} seeds x {args.particles} particles x {args.iters} "
           f"iterations, {problem.collision} collision check")
     print(result.table())

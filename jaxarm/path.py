@@ -122,7 +122,8 @@ def raise_degree(x, n_joints: int, degree: int):
 
 def free_by_joint(x, n_joints: int):
     """Reshape free parameters (..., n_free) to (..., degree - 5, n_joints)."""
-    return x.reshape(x.shape[:-1] + (-1, n_joints))
+    # not -1: reshaping an empty batch with -1 divides by zero
+    return x.reshape(x.shape[:-1] + (x.shape[-1] // n_joints, n_joints))
 
 
 def joint_angle_list(start, goal, x, basis, order: int = 0, per_path: bool = False) -> list:

@@ -17,6 +17,7 @@ from matplotlib import patches
 from matplotlib.animation import FuncAnimation, PillowWriter
 from matplotlib.figure import Figure
 
+from jaxarm._validate import positive_int
 from jaxarm.arm import joint_positions
 from jaxarm.problem import Problem, joint_path
 
@@ -38,9 +39,35 @@ def draw_world(ax, world) -> None:
         ax.add_patch(patches.Polygon(vertices, closed=True, **OBSTACLE_STYLE))
 
 
+def _one_path(problem: Problem, x) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float32)
+    if x.shape != (problem.n_free,):
+        raise ValueError(f"x must be one path of shape ({problem.n_free},), got shape {x.shape}; "
+                         "pick one row of a batch")
+    return x
+
+
 def _positions(problem: Problem, x, r) -> np.ndarray:
-    theta = joint_path(problem, np.asarray(x, dtype=np.float32), r)
+    theta = joint_path(problem, _one_path(problem, x), r)
     return np.asarray(joint_positions(problem.arm.lengths, theta))  # (n_r, n_joints + 1, 2)
+
+
+def _show_workspace(ax, problem: Problem) -> None:
+    """Equal axes that hold everything the arm can reach and every obstacle, labelled in cm."""
+    reach = problem.arm.reach
+    low, high = np.array([-reach, -reach]), np.array([reach, reach])
+    world = problem.world
+    for x, y, radius in world.circles:
+        low, high = np.minimum(low, [x - radius, y - radius]), np.maximum(high, [x + radius,
+                                                                                 y + radius])
+    for vertices in world.polygon_vertices():
+        low, high = np.minimum(low, vertices.min(axis=0)), np.maximum(high, vertices.max(axis=0))
+    pad = 0.05 * float(np.max(high - low))
+    ax.set_xlim(low[0] - pad, high[0] + pad)
+    ax.set_ylim(low[1] - pad, high[1] + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (cm)")
+    ax.set_ylabel("y (cm)")
 
 
 def plot_motion(problem: Problem, x, n_postures: int = 9, ax=None, title: str | None = None):
@@ -52,18 +79,14 @@ def plot_motion(problem: Problem, x, n_postures: int = 9, ax=None, title: str | 
     colors = [(0.15, 0.35 + 0.5 * t, 0.85 - 0.6 * t) for t in np.linspace(0, 1, n_postures)]
     for index, (posture, color) in enumerate(zip(postures, colors)):
         ends = index in (0, n_postures - 1)
+        label = {0: "start", n_postures - 1: "goal", 1: "in between"}.get(index)
         ax.plot(posture[:, 0], posture[:, 1], "-o", color=color, lw=2.2 if ends else 1.0,
-                ms=3, alpha=1.0 if ends else 0.6, zorder=3)
+                ms=3, alpha=1.0 if ends else 0.6, zorder=3, label=label)
     ax.plot(trace[:, 0], trace[:, 1], "--", color="#d62728", lw=1.2, label="end-effector",
             zorder=2)
-    ax.plot(0, 0, "ks", ms=7, zorder=4)
-    reach = problem.arm.reach
-    ax.set_xlim(-reach * 0.6, reach * 1.05)
-    ax.set_ylim(-reach * 0.6, reach * 1.05)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (cm)")
-    ax.set_ylabel("y (cm)")
-    ax.legend(loc="upper left", fontsize=8)
+    ax.plot(0, 0, "ks", ms=7, zorder=4, label="base")
+    _show_workspace(ax, problem)
+    ax.legend(loc="best", fontsize=8)
     ax.set_title(title or f"{problem.name}: motion")
     return figure
 
@@ -72,7 +95,7 @@ def plot_joint_angles(problem: Problem, x, ax=None, title: str | None = None):
     """theta_k(r) for every joint of the path ``x``."""
     figure, ax = _axes(ax, (5.5, 3.5))
     r = np.linspace(0.0, 1.0, 201)
-    theta = np.asarray(joint_path(problem, np.asarray(x, dtype=np.float32), r))
+    theta = np.asarray(joint_path(problem, _one_path(problem, x), r))
     for k in range(problem.n_joints):
         ax.plot(r, theta[:, k], label=f"θ{k + 1}")
     ax.set_xlabel("r = t / T")
@@ -105,17 +128,24 @@ def plot_convergence(history, escape_iter, ax=None, title: str = "Escape and evo
 
 
 def plot_escape_rates(study, ax=None, title: str | None = None):
-    """Escape rate of each method of a ``Study`` with its 95 % Wilson interval."""
-    figure, ax = _axes(ax, (5.5, 3.5))
+    """Escape rate of each method of a ``Study`` with its 95 % Wilson interval, coloured by
+    constraint rule."""
     labels = [m.variant.label for m in study.methods]
     rates = np.array([m.escape_rate() for m in study.methods])
     intervals = np.array([m.escape_interval() for m in study.methods])
     errors = np.abs(intervals.T - rates)
-    colors = ["#2ca02c" if m.variant.constraint == "feasibility" else "#1f77b4"
-              for m in study.methods]
-    ax.bar(labels, rates, yerr=errors, capsize=4, color=colors)
+    figure, ax = _axes(ax, (max(5.5, 0.9 * len(labels) + 1.5), 3.8))
+    palette = {"death": ("#1f77b4", "death penalty"), "feasibility": ("#2ca02c",
+                                                                       "feasibility rules")}
+    rules = [m.variant.constraint for m in study.methods]
+    ax.bar(labels, rates, yerr=errors, capsize=4, color=[palette[r][0] for r in rules])
     ax.set_ylim(0, 1.05)
-    ax.set_ylabel("escape rate")
+    ax.set_ylabel("escape rate (95 % interval)")
+    ax.tick_params(axis="x", labelrotation=30)
+    for label in ax.get_xticklabels():
+        label.set_horizontalalignment("right")
+    ax.legend(handles=[patches.Patch(color=palette[r][0], label=palette[r][1])
+                       for r in dict.fromkeys(rules)], fontsize=8, loc="upper right")
     ax.set_title(title or f"{study.problem_name}: escape within {study.n_iters} iterations "
                           f"({study.methods[0].n_seeds} seeds)")
     return figure
@@ -136,21 +166,30 @@ def plot_escape_curves(study, ax=None, title: str | None = None):
 
 
 def animate(problem: Problem, x, path, n_frames: int = 60, fps: int = 20) -> None:
-    """Write a GIF of the motion ``x`` to ``path``."""
+    """Write a GIF of the motion ``x`` (shape (n_free,)) to ``path`` (a .gif file): the arm at
+    ``n_frames`` equally spaced r, shown at ``fps`` frames per second."""
+    if str(path).lower()[-4:] != ".gif":
+        raise ValueError(f"path must end in .gif, got {str(path)!r}")
+    positive_int("n_frames", n_frames, minimum=2)
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 100:
+        raise ValueError(f"fps must be a number in (0, 100], got {fps!r}")
     figure, ax = _axes(None)
     draw_world(ax, problem.world)
-    frames = _positions(problem, x, np.linspace(0.0, 1.0, n_frames))
-    reach = problem.arm.reach
-    ax.set_xlim(-reach * 0.6, reach * 1.05)
-    ax.set_ylim(-reach * 0.6, reach * 1.05)
-    ax.set_aspect("equal")
-    (arm,) = ax.plot([], [], "-o", color="#1f3f99", lw=2.5, ms=4)
-    (trace,) = ax.plot([], [], "--", color="#d62728", lw=1.0)
+    r = np.linspace(0.0, 1.0, n_frames)
+    frames = _positions(problem, x, r)
+    _show_workspace(ax, problem)
+    ax.set_title(f"{problem.name}: motion")
+    ax.plot(0, 0, "ks", ms=7, zorder=4)
+    (arm,) = ax.plot([], [], "-o", color="#1f3f99", lw=2.5, ms=4, label="arm")
+    (trace,) = ax.plot([], [], "--", color="#d62728", lw=1.0, label="end-effector")
+    ax.legend(loc="upper right", fontsize=8)
+    clock = ax.text(0.02, 0.96, "", transform=ax.transAxes, va="top", fontsize=9)
 
     def update(index):
         arm.set_data(frames[index, :, 0], frames[index, :, 1])
         trace.set_data(frames[: index + 1, -1, 0], frames[: index + 1, -1, 1])
-        return arm, trace
+        clock.set_text(f"r = t / T = {r[index]:.2f}")
+        return arm, trace, clock
 
     FuncAnimation(figure, update, frames=n_frames, blit=False).save(
         str(path), writer=PillowWriter(fps=fps)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from typing import NamedTuple
 
 import jax
@@ -105,10 +106,9 @@ class Problem:
             raise ValueError(f"arm must be a jaxarm.Arm, got {self.arm!r}")
         if not isinstance(self.world, World):
             raise ValueError(f"world must be a jaxarm.World, got {self.world!r}")
-        n_joints = self.arm.n_joints
         set_field = functools.partial(object.__setattr__, self)
-        set_field("start", tuple(finite_vector("start", self.start, n_joints).tolist()))
-        set_field("goal", tuple(finite_vector("goal", self.goal, n_joints).tolist()))
+        for which in ("start", "goal"):
+            set_field(which, _posture(which, getattr(self, which), self.arm))
         degree = positive_int("degree", self.degree, minimum=path.MIN_DEGREE)
         set_field("degree", degree)
         n_samples = positive_int("n_samples", self.n_samples, minimum=3)
@@ -209,6 +209,12 @@ class Problem:
         """A copy with some fields changed (and validated again)."""
         return dataclasses.replace(self, **changes)
 
+    def to_toml(self) -> str:
+        """This problem as scenario-file text (``jaxarm.save_scenario`` writes it to a file)."""
+        from jaxarm.scenarios import to_toml
+
+        return to_toml(self)
+
     def summary(self) -> str:
         """A few human-readable lines describing the problem."""
         world = self.world
@@ -226,6 +232,23 @@ class Problem:
                 f"  search   init range [{_describe(self.init_low)}, {_describe(self.init_high)}]",
             ]
         )
+
+
+MAX_ANGLE = 100.0  # rad; beyond it float32 angles lose the precision the geometry needs
+
+
+def _posture(which: str, value, arm: Arm) -> tuple[float, ...]:
+    """Joint angles for ``arm`` (one per link, finite, within +-MAX_ANGLE), or a ValueError."""
+    angles = finite_vector(which, value)
+    if angles.size != arm.n_joints:
+        raise ValueError(f"{which} has {angles.size} joint angles but arm.lengths "
+                         f"{list(arm.lengths)} has {arm.n_joints} links")
+    outside = np.nonzero(np.abs(angles) > MAX_ANGLE)[0]
+    if outside.size:
+        index = int(outside[0])
+        raise ValueError(f"{which}[{index}] must be an angle in [-{MAX_ANGLE:g}, {MAX_ANGLE:g}] "
+                         f"rad, got {float(angles[index])!r}")
+    return tuple(angles.tolist())
 
 
 def _describe(bound) -> str:
@@ -256,7 +279,7 @@ def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x) -> Evaluation:
     Returns:
       ``Evaluation`` of arrays of shape (...,).
     """
-    rows = x.reshape((-1, x.shape[-1]))
+    rows = x.reshape((math.prod(x.shape[:-1]), x.shape[-1]))  # -1 fails on empty batches
     # Separate loops for distance and collision: one scan carrying both was no faster, and
     # slower for the certified check at small batches (XLA splits a bigger loop body into
     # more fusions).
@@ -276,6 +299,9 @@ def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x) -> Evaluation:
 
 def certify_rows(spec: ProblemSpec, arrays: ProblemArrays, rows) -> certified_lib.CertifiedCheck:
     """The certified check (``jaxarm.certified``) of paths ``rows``, shape (B, n_free)."""
+    if rows.shape[0] == 0:  # the bisection's lanes need a path: check one, keep none
+        one = certify_rows(spec, arrays, jnp.zeros((1, rows.shape[1]), rows.dtype))
+        return jax.tree.map(lambda a: a[:0], one)
     return certified_lib.check(arrays.lengths, arrays.world, arrays.start, arrays.goal, rows,
                                spec.degree, spec.n_samples, arrays.certify_tol, arrays.margin,
                                spec.certify_budget)
@@ -379,7 +405,12 @@ def joint_path(problem: Problem, x, r, order: int = 0) -> jax.Array:
       Array of shape (..., n_r, n_joints).
     """
     x = _as_params(problem, x)
-    r = np.asarray(r, dtype=np.float64) if not isinstance(r, jax.Array) else r
+    if isinstance(order, bool) or order not in range(4):
+        raise ValueError(f"order must be 0, 1, 2 or 3, got {order!r}")
+    if not isinstance(r, jax.Array):
+        r = np.asarray(r, dtype=np.float64)
+        if r.ndim != 1 or not np.all((r >= 0.0) & (r <= 1.0)):
+            raise ValueError(f"r must be a 1-D array of normalised times in [0, 1], got {r!r}")
     basis = path.basis_values(problem.degree, r, order)
     return path.joint_angles(problem.arrays.start, problem.arrays.goal, x, basis, order)
 
@@ -407,7 +438,7 @@ class Certificate(NamedTuple):
 
 @functools.partial(jax.jit, static_argnums=0)
 def _certify(spec, arrays, x):
-    rows = x.reshape((-1, x.shape[-1]))
+    rows = x.reshape((math.prod(x.shape[:-1]), x.shape[-1]))  # -1 fails on empty batches
     check = certify_rows(spec, arrays, rows)
     return Certificate(*(a.reshape(x.shape[:-1]) for a in (
         check.free, check.colliding, check.clearance, check.exhausted)))

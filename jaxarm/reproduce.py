@@ -17,9 +17,10 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from jaxarm import plot, published, reconstruct, scenarios, study
+from jaxarm._validate import positive_int
 from jaxarm.problem import certify, fitness
 from jaxarm.polish import refine
-from jaxarm.search import solve
+from jaxarm.search import exact_text, solve
 
 def _vector(x, digits=4) -> str:
     return "[" + ", ".join(f"{v:.{digits}f}" for v in np.asarray(x)) + "]"
@@ -64,10 +65,14 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
       The path of the report.
     """
     began = time.perf_counter()
+    # Every name and size is checked before the first study: a typo fails in a second.
+    n_seeds = positive_int("n_seeds", n_seeds) if n_seeds is not None else (100 if quick else 500)
+    suite_seeds = (positive_int("suite_seeds", suite_seeds) if suite_seeds is not None
+                   else (50 if quick else 200))
+    suite = list(scenarios.available()) if suite is None else _suite_problems(suite)
+    degrees = [positive_int("degrees", d, minimum=6) for d in degrees]
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    n_seeds = n_seeds or (100 if quick else 500)
-    suite_seeds = suite_seeds or (50 if quick else 200)
     report = _Report(out)
     # The paper's tables use the paper's check: collision-free at the 101 samples of r.
     case1, case2, case3 = (scenarios.load_scenario(f"paper-case-{i}", collision="sampled")
@@ -102,7 +107,7 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
     log(f"beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine")
     report.add(*beyond_paper_section((case1, case2, case3), 20 if quick else 100, degrees))
     log(f"shipped suite: {suite_seeds} seeds per scenario")
-    _suite(report, suite or list(scenarios.available()), suite_seeds, progress)
+    _suite(report, suite, suite_seeds, progress)
     report.add(f"Total time: {time.perf_counter() - began:.0f} s.")
     path = report.write()
     log(f"report written to {path}")
@@ -208,13 +213,15 @@ def _escape_section(report: _Report, case1, case1_study) -> None:
     report.figure(plot.plot_escape_curves(case1_study), "case1_escape_curves.png",
                   "Fraction escaped by iteration")
     method = case1_study["A"].outcome
-    shown = slice(0, min(60, len(method.escape_iter)))
-    report.figure(plot.plot_convergence(method.history[shown], method.escape_iter[shown],
-                                        title="Case 1, preset A, death penalty (paper Fig. 12)"),
+    n_shown = min(60, len(method.escape_iter))  # more curves would hide one another
+    report.figure(plot.plot_convergence(method.history[:n_shown], method.escape_iter[:n_shown],
+                                        title=f"Case 1, preset A, death penalty: the first "
+                                              f"{n_shown} of {len(method.escape_iter)} seeds "
+                                              "(paper Fig. 12)"),
                   "case1_convergence.png", "Escape and evolution, preset A")
     rules = case1_study["A:feasibility"].outcome
     x = rules.best_x[rules.best_restart()]
-    report.add(f"Best path found on case 1: a6 = {_vector(x)}, fitness "
+    report.add(f"Best path found on case 1: a6 = {exact_text(x)}, fitness "
                f"{float(fitness(case1, x)):.4f}.", "")
     report.figure(plot.plot_motion(case1, x, title="Case 1: best path (paper Fig. 11)"),
                   "case1_motion.png", "Case 1 motion")
@@ -237,7 +244,7 @@ def _table_3(report: _Report, case2, case3) -> None:
         result = results[problem.name] = solve(problem, "A", seed=0)
         report.add(
             f"| {problem.name} | {_vector(paper_x)} | {paper_fitness} | "
-            f"{float(fitness(problem, paper_x)):.4f} | {_vector(result.best_x)} | "
+            f"{float(fitness(problem, paper_x)):.4f} | {exact_text(result.best_x)} | "
             f"{result.best_fitness:.4f} | {result.certified} |"
         )
     report.add("", "Our fitness beats the paper's where the reconstructed obstacle leaves room "
@@ -282,9 +289,18 @@ def _table_6(report: _Report, case2) -> None:
         result = solve(case2, "A", seed=0, init_particles=[given])
         report.add(
             f"| {_vector(given)} ({float(fitness(case2, given)):.4f}) | {_vector(paper_x)} "
-            f"({paper_fitness}) | {_vector(result.best_x)} ({result.best_fitness:.4f}) |"
+            f"({paper_fitness}) | {exact_text(result.best_x)} ({result.best_fitness:.4f}) |"
         )
     report.add("")
+
+
+def _suite_problems(names) -> list:
+    """The suite's scenarios, each loaded once here so that a bad name or file fails first."""
+    if isinstance(names, str) or not names:
+        raise ValueError(f"suite must be a non-empty list of scenario names, got {names!r}")
+    for name in names:
+        scenarios.load_scenario(name)
+    return list(names)
 
 
 def _suite(report: _Report, names: list[str], n_seeds: int, progress) -> None:

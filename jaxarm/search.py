@@ -14,6 +14,15 @@ from jaxarm.problem import Problem, certify
 from jaxarm.restarts import RestartOutcome, run_restarts
 
 
+def exact_text(x) -> str:
+    """Free parameters as ``[a, b, ...]`` with the shortest digits that give back the same
+    float32 values: a printed optimum, which sits on an obstacle's edge, pasted back into
+    ``fitness`` is the same path (4 rounded decimals can make it collide)."""
+    values = np.asarray(x, dtype=np.float32).ravel()
+    return "[" + ", ".join(np.format_float_positional(v, unique=True, trim="-")
+                           for v in values) + "]"
+
+
 class Result(NamedTuple):
     """What ``solve`` found: every restart, the best one, and how it was produced.
 
@@ -75,7 +84,7 @@ class Result(NamedTuple):
         return "\n".join([
             f"method {self.method} ({self.config.velocity_rule}), constraint {self.constraint}, "
             f"{self.collision} collision check, seed {self.seed}",
-            f"best a   {np.array2string(self.best_x, precision=4, separator=', ')}",
+            f"best a   {exact_text(self.best_x)}",
             f"fitness  {self.best_fitness:.5g}  feasible {self.feasible}  "
             f"certified {self.certified}",
             *([f"WARNING  feasible only at the {self.collision} check's samples: the motion is "

@@ -57,6 +57,8 @@ def parse_variants(methods: Sequence, constraint: str) -> list[Variant]:
     the next ones "custom-2", "custom-3", ...; a ``Variant`` keeps its own label. Labels must
     be unique.
     """
+    if isinstance(methods, (str, pso.PSOConfig, Variant)):
+        methods = [methods]  # one method, not its characters or fields
     variants, n_custom = [], 0
     for method in methods:
         if isinstance(method, Variant):
@@ -259,7 +261,7 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_see
 
 
 def _progress_bar(total: int, label: str, enabled: bool):
-    from tqdm.auto import tqdm
+    from tqdm import tqdm  # text bar: tqdm.auto warns in notebooks without ipywidgets
 
     return tqdm(total=total, desc=f"{label} seeds", unit="seed", disable=not enabled,
                 file=sys.stderr, leave=False)

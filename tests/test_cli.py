@@ -2,7 +2,9 @@
 
 import json
 
+import numpy as np
 import pytest
+import tomli_w
 
 import jaxarm
 from jaxarm import choices, cli
@@ -26,11 +28,31 @@ def test_cli_solve_writes_json_and_plot(capsys, tmp_path):
                            "--plot", str(tmp_path / "r.png"))
     assert code == 0 and "fitness" in out
     data = json.loads((tmp_path / "r.json").read_text())
-    assert len(data["best_x"]) == 3 and len(data["history"]) == 13
+    assert len(data["result"]["best_x"]) == 3 and len(data["result"]["history"]) == 13
     assert data["scenario"] == "paper-case-2"
-    loaded = jaxarm.Result.from_dict(data)
+    loaded = jaxarm.Result.from_dict(data["result"])
     assert loaded.restarts.best_x.shape == (2, 3) and loaded.method == "A"
     assert (tmp_path / "r.png").stat().st_size > 5000
+
+
+def test_cli_solve_json_describes_its_run_well_enough_to_repeat_it(capsys, tmp_path):
+    code, _, _ = run_cli(capsys, "solve", "paper-case-2", "--particles", "6", "--iters", "10",
+                         "--restarts", "3", "--seed", "4", "--samples", "51", "--init-low",
+                         "-60", "--init-high", "80", "--refine", "all", "--constraint",
+                         "feasibility", "--json", str(tmp_path / "r.json"))
+    assert code == 0
+    data = json.loads((tmp_path / "r.json").read_text())
+    assert data["jaxarm"] == jaxarm.__version__ and data["jax"]
+    assert data["settings"] == dict(n_particles=6, n_iters=10, n_restarts=3, seed=4,
+                                    constraint="feasibility", refine="all")
+    scenario = tmp_path / "again.toml"
+    scenario.write_text(tomli_w.dumps(data["problem"]))
+    problem = jaxarm.load_scenario(scenario)
+    assert problem == jaxarm.load_scenario("paper-case-2", n_samples=51, init_low=-60.0,
+                                           init_high=80.0)
+    again = jaxarm.solve(problem, data["method"], **data["settings"])
+    np.testing.assert_array_equal(again.restarts.best_x,
+                                  jaxarm.Result.from_dict(data["result"]).restarts.best_x)
 
 
 def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
@@ -53,16 +75,63 @@ def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
         (["study", "paper-case-2", "--methods", "A,Z"], "method must be one of"),
         (["solve", "paper-case-2", "--seed", "-3"], "seed must be an integer"),
         (["study", "paper-case-2", "--methods", "A,A"], "unique labels, got 'A' twice"),
+        (["solve", "paper-case-2", "--samples", "50"], "--samples: n_samples must be odd"),
+        (["solve", "paper-case-2", "--init-low", "200"],
+         "--init-low: init_low must be < init_high"),
+        (["study", "paper-case-2", "--methods", ""], "--methods must be comma-separated names"),
+        (["study", "paper-case-2", "--methods", "A,"], "--methods must be comma-separated"),
+        (["solve", "paper-case-2", "--plot", "noext"],
+         "--plot must end in .png, .pdf, .svg, got 'noext'"),
+        (["solve", "paper-case-2", "--plot", "out.xyz"], "--plot must end in .png"),
+        (["solve", "paper-case-2", "--gif", "anim.png"], "--gif must end in .gif, got 'anim.png'"),
+        (["solve", "paper-case-2", "--gif", "missing/anim.gif"],
+         "--gif 'missing/anim.gif': folder 'missing' does not exist"),
+        (["study", "paper-case-2", "--json", "missing/s.json"], "folder 'missing' does not exist"),
+        (["study", "paper-case-2", "--csv", "missing/s.csv"], "folder 'missing' does not exist"),
+        (["reproduce-paper", "--suite", "open-space,nope"], "unknown scenario 'nope'"),
         (["--coordinator", "127.0.0.1:1", "solve", "paper-case-2"],
          "--coordinator, --num-processes and --process-id go together"),
         (["--coordinator", "127.0.0.1:1", "--num-processes", "2", "--process-id", "2", "solve",
           "paper-case-2"], r"--process-id must be in [0, 2), got 2"),
     ],
 )
-def test_cli_errors_are_one_line_without_traceback(capsys, argv, message):
+def test_cli_errors_are_one_line_without_traceback(capsys, monkeypatch, tmp_path, argv,
+                                                  message):
+    def no_work(*args, **kwargs):
+        raise AssertionError("the search started before the input was checked")
+
+    for module, name in (("search", "solve"), ("study", "escape_study"),
+                         ("restarts", "run_restarts")):
+        monkeypatch.setattr(f"jaxarm.{module}.{name}", no_work)
+    monkeypatch.chdir(tmp_path)
     code, _, err = run_cli(capsys, *argv)
     assert code == 2
     assert err.count("\n") == 1 and message in err and "Traceback" not in err
+    assert not (tmp_path / "results").exists()
+
+
+def test_cli_degree_with_per_coefficient_ranges_names_the_flag(capsys, tmp_path):
+    scenario = tmp_path / "ranges.toml"
+    scenario.write_text("[arm]\nlengths = [30.0, 30.0, 20.0]\n[start]\njoints = [0, 1, 0]\n"
+                        "[goal]\njoints = [1, 0, 0]\n[search]\ninit_low = [-1, -2, -3]\n"
+                        "init_high = 5\n")
+    code, _, err = run_cli(capsys, "solve", str(scenario), "--degree", "7")
+    assert code == 2 and err.count("\n") == 1
+    assert ("--degree 7: ranges's init_low has one value per coefficient of degree 6; give "
+            "--init-low and --init-high too") in err
+
+
+def test_cli_version_debug_after_the_subcommand_and_particles(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["--version"])
+    assert exit_info.value.code == 0
+    assert capsys.readouterr().out == f"jaxarm {jaxarm.__version__}\n"
+    with pytest.raises(jaxarm.ScenarioError, match="unknown scenario 'nope'"):
+        cli.main(["solve", "nope", "--debug"])
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["solve", "paper-case-2", "--particles", "1"])
+    assert exit_info.value.code == 2
+    assert "--particles: must be >= 2, got 1" in capsys.readouterr().err
 
 
 def test_cli_reports_malformed_and_colliding_scenarios(capsys, tmp_path):
@@ -83,7 +152,8 @@ def test_cli_help_on_every_subcommand(capsys):
         with pytest.raises(SystemExit) as exit_info:
             cli.main([command, "--help"])
         assert exit_info.value.code == 0
-        assert "usage: jaxarm" in capsys.readouterr().out
+        out = capsys.readouterr().out
+        assert "usage: jaxarm" in out and "%%" not in out
 
 
 def test_the_cli_offers_the_librarys_choices_without_importing_jax():

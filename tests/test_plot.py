@@ -1,5 +1,8 @@
 """Figures (``jaxarm.plot``)."""
 
+import numpy as np
+import pytest
+
 import jaxarm
 from jaxarm import plot, study
 
@@ -23,3 +26,37 @@ def test_plots_produce_non_empty_pngs(tmp_path, case2):
     gif = tmp_path / "motion.gif"
     plot.animate(case2, result.best_x, gif, n_frames=5)
     assert gif.read_bytes()[:6] == b"GIF89a"
+
+
+def test_figures_explain_themselves(tmp_path, case2):
+    x = np.array([66.7388, -28.1028, -9.8855], np.float32)
+    ax = plot.plot_motion(case2, x).axes[0]
+    reach = case2.arm.reach
+    (x_low, x_high), (y_low, y_high) = ax.get_xlim(), ax.get_ylim()
+    assert x_low <= -reach and x_high >= reach and y_low <= -reach and y_high >= reach
+    legend = [text.get_text() for text in ax.get_legend().get_texts()]
+    assert {"start", "goal", "end-effector", "base"} <= set(legend)
+    assert ax.get_xlabel() == "x (cm)" and ax.get_ylabel() == "y (cm)"
+    escape = study.escape_study(case2, ["A", "A:feasibility", "B", "C:feasibility"], n_seeds=3,
+                                **SMALL)
+    ax = plot.plot_escape_rates(escape).axes[0]
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["death penalty",
+                                                                   "feasibility rules"]
+    assert "3 seeds" in ax.get_title()
+    assert all(label.get_rotation() == 30 for label in ax.get_xticklabels())
+
+
+def test_plots_reject_what_they_cannot_draw(tmp_path, case2):
+    batch = np.zeros((2, 3))
+    for function in (plot.plot_motion, plot.plot_joint_angles):
+        with pytest.raises(ValueError, match=r"x must be one path of shape \(3,\), got shape "
+                                             r"\(2, 3\)"):
+            function(case2, batch)
+    x = np.zeros(3)
+    for kwargs, message in ((dict(n_frames=0), "n_frames must be >= 2, got 0"),
+                            (dict(fps=0), r"fps must be a number in \(0, 100\], got 0"),
+                            (dict(path=tmp_path / "a.png"), "path must end in .gif")):
+        arguments = dict(path=tmp_path / "a.gif") | kwargs
+        with pytest.raises(ValueError, match=message):
+            plot.animate(case2, x, **arguments)
+    assert not (tmp_path / "a.gif").exists()

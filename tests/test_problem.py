@@ -8,6 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import jaxarm
+import jaxarm.problem  # the module itself, for evaluate and vmapped_evaluate
 from jaxarm import published
 
 CASE_2_FEASIBLE = [s for s in published.CASE_2 if s.feasible]
@@ -108,7 +109,9 @@ ARM = jaxarm.Arm((30.0, 30.0, 20.0))
     "changes, message",
     [
         ({"start": [0.0, float("nan"), 0.0]}, r"start\[1\] must be finite, got nan"),
-        ({"goal": [0.0, 1.0]}, r"goal must have 3 values, got 2"),
+        ({"goal": [0.0, 1.0]},
+         r"goal has 2 joint angles but arm.lengths \[30.0, 30.0, 20.0\] has 3 links"),
+        ({"start": [1e30, 2.0, -0.6]}, r"start\[0\] must be an angle in \[-100, 100\] rad"),
         ({"n_samples": 100}, r"n_samples must be odd .* got 100"),
         ({"n_samples": 1}, r"n_samples must be >= 3, got 1"),
         ({"degree": 5}, r"degree must be >= 6, got 5"),
@@ -152,6 +155,26 @@ def test_bad_parameters_are_rejected(case2):
         jaxarm.fitness(case2, np.zeros(4))
     with pytest.raises(ValueError, match=r"x must be finite"):
         jaxarm.fitness(case2, [0.0, float("nan"), 1.0])
+
+
+@pytest.mark.parametrize("mode", ["sampled", "certified"])
+def test_an_empty_batch_gives_empty_answers(case2, mode):
+    problem = case2.replace(collision=mode)
+    empty = np.zeros((0, 3))
+    for function in (jaxarm.fitness, jaxarm.violation, jaxarm.travelling_distance):
+        assert np.asarray(function(problem, empty)).shape == (0,)
+    assert np.asarray(jaxarm.certify(problem, empty).free).shape == (0,)
+
+
+def test_joint_path_checks_the_order_and_the_times(case2):
+    x = [66.7388, -28.1028, -9.8855]
+    for order in (-1, 4, 1.5):
+        with pytest.raises(ValueError, match=rf"order must be 0, 1, 2 or 3, got {order}"):
+            jaxarm.joint_path(case2, x, [0.5], order=order)
+    for r in ([-0.1, 0.5], [0.5, 1.2], [[0.5]], [float("nan")]):
+        with pytest.raises(ValueError, match=r"r must be a 1-D array of normalised times"):
+            jaxarm.joint_path(case2, x, r)
+    assert jaxarm.joint_path(case2, x, [0.0, 1.0], order=3).shape == (2, 3)
 
 
 def test_vmapped_evaluate_folds_the_mapped_axis_and_agrees(case2, rng):

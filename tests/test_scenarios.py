@@ -64,6 +64,16 @@ def test_load_from_path_with_pose_and_overrides(tmp_path):
         ("[arm]\nlengths = [30.0]\n[start]\njoints = [0]\n[goal]\njoints = [1]\n"
          "[[obstacles]]\ntype = 'box'\nmin = [0, 50]", r"obstacles\[0\] \(box\) is missing 'max'"),
         ("[arm]\nlengths = [30.0]\n[goal]\njoints = [1]", r"\[start\] must be a table"),
+        ("[arm]\nlengths = [30.0]\n[start]\njoints = [0]\n[goal]\njoints = [1]\n"
+         "[[obstacles]]\ntype = 'circle'\ncenter = [50, 50, 1, 2]\nradius = 1",
+         r"obstacles\[0\].center must have 2 values, got 4"),
+        ("[arm]\nlengths = [30.0, 30.0]\n[start]\njoints = [0, 0, 0]\n[goal]\njoints = [1, 0]",
+         r"start has 3 joint angles but arm.lengths \[30.0, 30.0\] has 2 links"),
+        ("[arm]\nlengths = [30.0, 30.0, 20.0]\n[start]\njoints = [1e30, 2.0, -0.6]\n"
+         "[goal]\njoints = [1, 0, 0]", r"start\[0\] must be an angle in \[-100, 100\] rad"),
+        ("[arm]\nlengths = [30.0, 30.0, 20.0]\n[start]\njoints = [0.3, 1.2, -1.5]\n"
+         "pose = { x = 50.0, y = -10.0, phi = 0.0 }\n[goal]\njoints = [1, 0, 0]",
+         r"start.joints \[0.3, 1.2, -1.5\] and start.pose .* disagree"),
     ],
 )
 def test_malformed_scenarios_name_the_file_and_key(tmp_path, text, message):
@@ -77,3 +87,33 @@ def test_unknown_scenario_lists_the_shipped_ones():
     with pytest.raises(ValueError,
                        match=r"unknown scenario 'paper-case-9'; shipped .*paper-case-1"):
         jaxarm.load_scenario("paper-case-9")
+
+
+def test_a_posture_given_both_ways_must_agree(tmp_path):
+    joints = jaxarm.inverse_kinematics(ARM, 50.0, -10.0, 0.2, -1)
+    path = tmp_path / "both.toml"
+    path.write_text(f"[arm]\nlengths = [30.0, 30.0, 20.0]\n[start]\njoints = {joints.tolist()}\n"
+                    "pose = { x = 50.0, y = -10.0, phi = 0.2, elbow = -1 }\n"
+                    "[goal]\njoints = [0.3, 1.2, -1.5]\n")
+    assert jaxarm.load_scenario(path).start == tuple(joints)
+    path.write_text(path.read_text().replace("elbow = -1", "elbow = 1"))
+    with pytest.raises(jaxarm.ScenarioError, match="disagree: .* elbow -1"):
+        jaxarm.load_scenario(path)
+
+
+def test_every_problem_written_as_a_scenario_loads_back_equal(tmp_path):
+    problems = [jaxarm.load_scenario(name) for name in jaxarm.available_scenarios()]
+    problems.append(jaxarm.Problem(
+        arm=jaxarm.Arm((25.0, 20.0, 15.0, 10.0)), start=[0.1, 0.2, 0.3, 0.4 + 1e-9],
+        goal=[1.0, -0.5, 0.25, 1 / 3], degree=7, n_samples=51, collision="sampled",
+        init_low=[-1.5, -2, -3, -4, -5, -6, -7, -8], init_high=9.25, name="mine",
+        description="built in code", capacities=(4, 4, 8), margin=0.25, certify_tol=0.005,
+        certify_budget=300,
+        world=jaxarm.World(circles=[(40.0, 30.0, 3.3)], boxes=[((-40.0, 20.0), (-30.0, 25.0))],
+                           polygons=[[(-10.0, 50.0), (-20.0, 60.0), (-5.0, 70.0)]])))
+    for problem in problems:
+        path = jaxarm.save_scenario(problem, tmp_path / f"{problem.name}.toml")
+        assert jaxarm.load_scenario(path) == problem, problem.name
+        assert path.read_text() == problem.to_toml()
+    with pytest.raises(ValueError, match=r"path must end in .toml, got '.*x.txt'"):
+        jaxarm.save_scenario(problems[0], tmp_path / "x.txt")

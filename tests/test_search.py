@@ -51,7 +51,7 @@ def test_certified_search_returns_certified_paths(case2):
     "kwargs, message",
     [
         (dict(constraint="soft"), r"constraint must be one of .* got 'soft'"),
-        (dict(n_particles=0), r"n_particles must be >= 1, got 0"),
+        (dict(n_particles=1), r"n_particles must be >= 2, got 1"),
         (dict(n_restarts=2.5), r"n_restarts must be an integer, got 2.5"),
         (dict(seed=-1), r"seed must be an integer in \[0, 2\*\*31\), got -1"),
     ],
@@ -163,3 +163,16 @@ def test_result_nests_the_restarts_and_round_trips_through_json(case2):
         np.testing.assert_array_equal(getattr(loaded.restarts, name), getattr(outcome, name))
     assert loaded._replace(restarts=outcome) == result._replace(restarts=outcome)
     assert loaded.config == pso.PRESETS["C"]
+
+
+@pytest.mark.parametrize("collision", ["sampled", "certified"])
+def test_a_printed_answer_pasted_back_is_the_same_path(case2, collision):
+    """``summary()`` prints a6 with enough digits to give back the same float32 values, so the
+    printed optimum (on the obstacle's edge) keeps its fitness when pasted back."""
+    problem = case2.replace(collision=collision)
+    result = jaxarm.solve(problem, "A", n_restarts=2, seed=0)
+    line = next(line for line in result.summary().splitlines() if line.startswith("best a"))
+    pasted = json.loads(line.split(maxsplit=2)[2])
+    np.testing.assert_array_equal(np.asarray(pasted, np.float32), result.best_x)
+    assert result.feasible
+    assert float(jaxarm.fitness(problem, pasted)) == result.best_fitness

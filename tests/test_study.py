@@ -88,6 +88,8 @@ def test_study_rows_have_unique_labels_and_feasibility_comes_from_the_violation(
         (["A"], dict(seed=-1), r"seed must be an integer in \[0, 2\*\*31\), got -1"),
         (["A"], dict(n_iters=0), r"n_iters must be >= 1, got 0"),
         (["A"], dict(n_particles=2.5), r"n_particles must be an integer, got 2.5"),
+        (["A"], dict(n_particles=1), r"n_particles must be >= 2, got 1"),
+        ("AB", {}, r"method must be one of .* got 'AB'"),
         (["A"], dict(constraint="soft"), r"constraint must be one of .* got 'soft'"),
     ],
 )

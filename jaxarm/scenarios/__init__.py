@@ -8,7 +8,7 @@ Schema (units: cm and rad)::
     [arm]
     lengths = [30.0, 30.0, 20.0]
     [start]                            # joint angles, or a pose solved by inverse kinematics
-    joints = [-1.33, 2.03, -0.69]      #   (3-link arms only); if both are given, joints win
+    joints = [-1.33, 2.03, -0.69]      #   (3-link arms only); if both are given they must agree
     pose = { x = 50.0, y = -10.0, phi = 0.0, elbow = 1 }
     [goal]                             # same as [start]
     [search]                           # all optional
@@ -17,12 +17,17 @@ Schema (units: cm and rad)::
     collision = "certified"            # default; "sampled" is the paper's check at the samples
     margin = 0.0                       # cm every link keeps from every obstacle
     certify_tol = 0.01                 # cm: the certified check's tolerance
+    certify_budget = 512               # most pieces the certified check tests per path
+    capacities = [4, 0, 0]             # obstacle slots: circles, polygons, vertices per polygon
     init_low = -100.0                  # scalar or one value per free coefficient
     init_high = 100.0
     [[obstacles]]                      # any number of these
     type = "circle"                    # center = [x, y], radius = r
     type = "box"                       # min = [xmin, ymin], max = [xmax, ymax]
     type = "polygon"                   # vertices = [[x, y], ...], convex, either order
+
+``save_scenario`` (or ``Problem.to_toml``) writes a ``Problem`` in this schema; loading the file
+gives back an equal ``Problem``.
 """
 
 from __future__ import annotations
@@ -31,6 +36,10 @@ import importlib.resources
 import pathlib
 import tomllib
 
+import numpy as np
+import tomli_w
+
+from jaxarm._validate import finite_scalar, finite_vector
 from jaxarm.arm import Arm, inverse_kinematics
 from jaxarm.problem import Problem
 from jaxarm import world as world_lib
@@ -44,7 +53,8 @@ class ScenarioError(ValueError):
 UNITS = "cm, rad"
 _TOP_KEYS = {"name", "description", "units", "arm", "start", "goal", "search", "obstacles"}
 _SEARCH_KEYS = {"degree", "samples", "collision", "init_low", "init_high", "margin",
-                "certify_tol"}
+                "certify_tol", "certify_budget", "capacities"}
+POSE_TOLERANCE = 1e-6  # cm and rad: how closely a posture's joints and pose must agree
 _OBSTACLE_KEYS = {
     "circle": {"type", "center", "radius"},
     "box": {"type", "min", "max"},
@@ -120,19 +130,38 @@ def _unknown(table: dict, allowed: set, where: str) -> None:
 def _posture(data: dict, which: str, arm: Arm):
     table = _table(data, which)
     _unknown(table, {"joints", "pose"}, f"in [{which}]: ")
-    if "joints" in table:
-        return table["joints"]
     if "pose" not in table:
-        raise ScenarioError(f"[{which}] needs 'joints' or 'pose'")
+        if "joints" not in table:
+            raise ScenarioError(f"[{which}] needs 'joints' or 'pose'")
+        return table["joints"]
     pose = table["pose"]
     if not isinstance(pose, dict) or not {"x", "y"} <= set(pose):
         raise ScenarioError(f"{which}.pose must be {{x, y, phi, elbow}}, got {pose!r}")
     _unknown(pose, {"x", "y", "phi", "elbow"}, f"in {which}.pose: ")
     try:
-        return inverse_kinematics(arm, pose["x"], pose["y"], pose.get("phi", 0.0),
-                                  pose.get("elbow", 1))
+        joints = inverse_kinematics(arm, pose["x"], pose["y"], pose.get("phi", 0.0),
+                                    pose.get("elbow", 1))
     except ValueError as error:
         raise ScenarioError(f"{which}.{error}") from None
+    if "joints" in table:
+        _check_agreement(which, arm, table["joints"], pose)
+    return joints
+
+
+def _check_agreement(which: str, arm: Arm, joints, pose: dict) -> None:
+    """A posture given both ways must be the same posture."""
+    given = finite_vector(f"{which}.joints", joints, arm.n_joints)
+    absolute = np.cumsum(given)  # each link's angle in the plane (paper eqs. 1-4)
+    x, y = (float(np.dot(arm.lengths, f(absolute))) for f in (np.cos, np.sin))
+    phi = float(absolute[-1])
+    wrapped = (phi - float(pose.get("phi", 0.0)) + np.pi) % (2 * np.pi) - np.pi
+    elbow = 1 if np.sin(given[1]) >= 0 else -1
+    if (max(abs(x - pose["x"]), abs(y - pose["y"]), abs(wrapped)) > POSE_TOLERANCE
+            or elbow != pose.get("elbow", 1)):
+        raise ScenarioError(
+            f"{which}.joints {given.tolist()} and {which}.pose {pose} disagree: the joints put the "
+            f"end-effector at x = {x:.6g}, y = {y:.6g}, phi = {phi:.6g}, elbow {elbow:+d}; "
+            "give one of them")
 
 
 def _obstacles(entries) -> World:
@@ -150,10 +179,9 @@ def _obstacles(entries) -> World:
             raise ScenarioError(f"{where} ({kind}) is missing {missing[0]!r}")
         try:
             if kind == "circle":
-                center = entry["center"]
-                if not isinstance(center, list):
-                    raise ValueError(f"{where}.center must be [x, y], got {center!r}")
-                circles.append(world_lib.check_circle(where, (*center, entry["radius"])))
+                center = finite_vector(f"{where}.center", entry["center"], length=2)
+                radius = finite_scalar(f"{where}.radius", entry["radius"])
+                circles.append(world_lib.check_circle(where, (*center, radius)))
             elif kind == "box":
                 boxes.append(world_lib.check_box(where, (entry["min"], entry["max"])))
             else:
@@ -183,6 +211,8 @@ def _problem(data: dict, default_name: str) -> Problem:
         "init_high": search.get("init_high", 100.0),
         "margin": search.get("margin", 0.0),
         "certify_tol": search.get("certify_tol", 0.01),
+        "certify_budget": search.get("certify_budget", 512),
+        "capacities": search.get("capacities"),
     }
     return Problem(
         arm=arm,
@@ -193,3 +223,46 @@ def _problem(data: dict, default_name: str) -> Problem:
         description=str(data.get("description", "")),
         **fields,
     )
+
+
+def scenario_table(problem: Problem) -> dict:
+    """``problem`` in the scenario schema, as plain dicts, lists and numbers."""
+    world = problem.world
+    obstacles = ([{"type": "circle", "center": [x, y], "radius": r} for x, y, r in world.circles]
+                 + [{"type": "box", "min": list(low), "max": list(high)}
+                    for low, high in world.boxes]
+                 + [{"type": "polygon", "vertices": [list(v) for v in polygon]}
+                    for polygon in world.polygons])
+    bound = (lambda v: list(v) if isinstance(v, tuple) else v)
+    return {
+        "name": problem.name,
+        "description": problem.description,
+        "units": UNITS,
+        "arm": {"lengths": list(problem.arm.lengths)},
+        "start": {"joints": list(problem.start)},
+        "goal": {"joints": list(problem.goal)},
+        "search": {"degree": problem.degree, "samples": problem.n_samples,
+                   "collision": problem.collision, "margin": problem.margin,
+                   "certify_tol": problem.certify_tol, "certify_budget": problem.certify_budget,
+                   "capacities": list(problem.capacities),
+                   "init_low": bound(problem.init_low), "init_high": bound(problem.init_high)},
+        "obstacles": obstacles,
+    }
+
+
+def to_toml(problem: Problem) -> str:
+    """``problem`` as scenario-file text (postures as joints, floats written exactly)."""
+    return tomli_w.dumps(scenario_table(problem))
+
+
+def save_scenario(problem: Problem, path: str | pathlib.Path) -> pathlib.Path:
+    """Write ``problem`` as a scenario file that ``load_scenario(path)`` reads back equal.
+
+    Returns:
+      The path written.
+    """
+    path = pathlib.Path(path)
+    if path.suffix != ".toml":
+        raise ValueError(f"path must end in .toml, got {str(path)!r}")
+    path.write_text(to_toml(problem))
+    return path
