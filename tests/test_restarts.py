@@ -146,7 +146,7 @@ def test_two_processes_return_what_one_process_returns(case2, tmp_path):
     assert [p.returncode for p in processes] == [0, 0], [err[-2000:] for _, err in outputs]
     assert f"wrote {out}" in outputs[0][0] and "fitness" in outputs[0][0]
     assert "wrote" not in outputs[1][0] and "fitness" not in outputs[1][0]  # 1 stays quiet
-    two = jaxarm.Result.from_dict(json.loads(out.read_text()))
+    two = jaxarm.Result.from_dict(json.loads(out.read_text())["result"])
     one = jaxarm.solve(case2, "A", n_restarts=7, seed=4, constraint="feasibility", **SMALL)
     for name in one.restarts._fields:
         np.testing.assert_array_equal(getattr(two.restarts, name), getattr(one.restarts, name))

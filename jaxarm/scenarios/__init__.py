@@ -159,8 +159,8 @@ def _check_agreement(which: str, arm: Arm, joints, pose: dict) -> None:
     if (max(abs(x - pose["x"]), abs(y - pose["y"]), abs(wrapped)) > POSE_TOLERANCE
             or elbow != pose.get("elbow", 1)):
         raise ScenarioError(
-            f"{which}.joints {given.tolist()} and {which}.pose {pose} disagree: the joints put the "
-            f"end-effector at x = {x:.6g}, y = {y:.6g}, phi = {phi:.6g}, elbow {elbow:+d}; "
+            f"{which}.joints {given.tolist()} and {which}.pose {pose} disagree: the joints put "
+            f"the end-effector at x = {x:.6g}, y = {y:.6g}, phi = {phi:.6g}, elbow {elbow:+d}; "
             "give one of them")
 
 
