@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test test-all test-slow clean
+.PHONY: demo test test-all test-slow notebooks clean
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +26,9 @@ test-all: $(VENV)/.installed-test
 
 test-slow: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q -m slow
+
+notebooks: $(VENV)/.installed-test
+	$(BIN)/python notebooks/execute.py
 
 clean:
 	rm -rf $(VENV) results .pytest_cache .hypothesis
