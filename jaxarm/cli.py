@@ -181,7 +181,6 @@ _OVERRIDES = {"collision": "collision", "degree": "degree", "samples": "n_sample
 
 
 def _load(args):
-    from jaxarm.problem import Problem
     from jaxarm.scenarios import load_scenario
 
     problem = load_scenario(args.scenario)
@@ -194,13 +193,16 @@ def _load(args):
             raise ValueError(f"--degree {args.degree}: {problem.name}'s {kept[0]} has one value "
                              f"per coefficient of degree {problem.degree}; give --init-low "
                              "and --init-high too")
-    for flag, field in _OVERRIDES.items():  # one at a time, so that the error names the flag
-        if field in overrides:
-            try:
-                Problem.replace(problem, **{field: overrides[field]})
-            except ValueError as error:
-                raise ValueError(f"--{flag.replace('_', '-')}: {error}") from None
-    return problem.replace(**overrides) if overrides else problem
+    try:
+        return problem.replace(**overrides) if overrides else problem
+    except ValueError as combined:
+        for flag, field in _OVERRIDES.items():  # the flag that fails alone is the one to name
+            if field in overrides:
+                try:
+                    problem.replace(**{field: overrides[field]})
+                except ValueError as error:
+                    raise ValueError(f"--{flag.replace('_', '-')}: {error}") from None
+        raise combined
 
 
 def _scenarios(args) -> None:

@@ -69,7 +69,7 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
     n_seeds = positive_int("n_seeds", n_seeds) if n_seeds is not None else (100 if quick else 500)
     suite_seeds = (positive_int("suite_seeds", suite_seeds) if suite_seeds is not None
                    else (50 if quick else 200))
-    suite = list(scenarios.available()) if suite is None else _suite_problems(suite)
+    suite = _suite_problems(list(scenarios.available()) if suite is None else suite)
     degrees = [positive_int("degrees", d, minimum=6) for d in degrees]
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -295,23 +295,21 @@ def _table_6(report: _Report, case2) -> None:
 
 
 def _suite_problems(names) -> list:
-    """The suite's scenarios, each loaded once here so that a bad name or file fails first."""
+    """The suite's scenarios under the paper's sampled check, loaded before any study so that
+    a bad name or file fails first."""
     if isinstance(names, str) or not names:
         raise ValueError(f"suite must be a non-empty list of scenario names, got {names!r}")
-    for name in names:
-        scenarios.load_scenario(name)
-    return list(names)
+    return [scenarios.load_scenario(name, collision="sampled") for name in names]
 
 
-def _suite(report: _Report, names: list[str], n_seeds: int, progress) -> None:
+def _suite(report: _Report, problems: list, n_seeds: int, progress) -> None:
     report.add(
         f"## The shipped suite: escape rates over {n_seeds} seeds (preset A)", "",
         "| scenario | links | death penalty [95 % CI] | feasibility rules [95 % CI] | "
         "best fitness | certified (feasibility rules' best paths) |", "|---|---|---|---|---|---|",
     )
     rates = []
-    for name in names:
-        problem = scenarios.load_scenario(name, collision="sampled")
+    for problem in problems:
         result = study.escape_study(problem, ["A", "A:feasibility"], n_seeds=n_seeds,
                                     progress=progress)
         cells = []
@@ -322,9 +320,9 @@ def _suite(report: _Report, names: list[str], n_seeds: int, progress) -> None:
         rules = result.methods[1].outcome
         escaped = rules.best_x[rules.feasible]
         proved = int(np.sum(certify(problem, escaped).free)) if len(escaped) else 0
-        report.add(f"| {name} | {problem.n_joints} | {cells[0]} | {cells[1]} | {best:.4f} | "
-                   f"{proved}/{len(escaped)} |")
-        rates.append((name, result))
+        report.add(f"| {problem.name} | {problem.n_joints} | {cells[0]} | {cells[1]} | "
+                   f"{best:.4f} | {proved}/{len(escaped)} |")
+        rates.append((problem.name, result))
     report.add("")
     figure = Figure(figsize=(8.0, 3.8), layout="constrained")
     ax = figure.add_subplot()

@@ -52,8 +52,11 @@ class ScenarioError(ValueError):
 
 UNITS = "cm, rad"
 _TOP_KEYS = {"name", "description", "units", "arm", "start", "goal", "search", "obstacles"}
-_SEARCH_KEYS = {"degree", "samples", "collision", "init_low", "init_high", "margin",
-                "certify_tol", "certify_budget", "capacities"}
+# [search] key -> Problem field; a key left out keeps the Problem's default
+_SEARCH_FIELDS = {"degree": "degree", "samples": "n_samples", "collision": "collision",
+                  "init_low": "init_low", "init_high": "init_high", "margin": "margin",
+                  "certify_tol": "certify_tol", "certify_budget": "certify_budget",
+                  "capacities": "capacities"}
 POSE_TOLERANCE = 1e-6  # cm and rad: how closely a posture's joints and pose must agree
 _OBSTACLE_KEYS = {
     "circle": {"type", "center", "radius"},
@@ -202,18 +205,8 @@ def _problem(data: dict, default_name: str) -> Problem:
         raise ScenarioError("[arm] needs 'lengths'")
     arm = Arm(lengths=arm_table["lengths"])
     search = _table(data, "search", required=False)
-    _unknown(search, _SEARCH_KEYS, "in [search]: ")
-    fields = {
-        "degree": search.get("degree", 6),
-        "n_samples": search.get("samples", 101),
-        "collision": search.get("collision", "certified"),
-        "init_low": search.get("init_low", -100.0),
-        "init_high": search.get("init_high", 100.0),
-        "margin": search.get("margin", 0.0),
-        "certify_tol": search.get("certify_tol", 0.01),
-        "certify_budget": search.get("certify_budget", 512),
-        "capacities": search.get("capacities"),
-    }
+    _unknown(search, set(_SEARCH_FIELDS), "in [search]: ")
+    fields = {field: search[key] for key, field in _SEARCH_FIELDS.items() if key in search}
     return Problem(
         arm=arm,
         start=_posture(data, "start", arm),
@@ -233,7 +226,7 @@ def scenario_table(problem: Problem) -> dict:
                     for low, high in world.boxes]
                  + [{"type": "polygon", "vertices": [list(v) for v in polygon]}
                     for polygon in world.polygons])
-    bound = (lambda v: list(v) if isinstance(v, tuple) else v)
+    plain = (lambda v: list(v) if isinstance(v, tuple) else v)  # TOML arrays from tuples
     return {
         "name": problem.name,
         "description": problem.description,
@@ -241,11 +234,7 @@ def scenario_table(problem: Problem) -> dict:
         "arm": {"lengths": list(problem.arm.lengths)},
         "start": {"joints": list(problem.start)},
         "goal": {"joints": list(problem.goal)},
-        "search": {"degree": problem.degree, "samples": problem.n_samples,
-                   "collision": problem.collision, "margin": problem.margin,
-                   "certify_tol": problem.certify_tol, "certify_budget": problem.certify_budget,
-                   "capacities": list(problem.capacities),
-                   "init_low": bound(problem.init_low), "init_high": bound(problem.init_high)},
+        "search": {key: plain(getattr(problem, field)) for key, field in _SEARCH_FIELDS.items()},
         "obstacles": obstacles,
     }
 
