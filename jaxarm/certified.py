@@ -44,9 +44,9 @@ Violation (for constraint handling), zero exactly when the motion is certified f
 - a witness at a sample: how far the nearest link is inside the margin at the deepest sample
   (cm). On the refitted paper-case-1 this escapes in 81 % of 100 restarts under feasibility
   rules, against 52 % when that penetration was summed over the samples (the sum rewards
-  paths that swing fast through an obstacle) and 28 % when the positive window shortfalls
-  were summed (their speed term favours slow paths, which there run through the big circle;
-  ``benchmarks/certified_bench.py`` measures every scenario);
+  paths that swing fast through an obstacle; ``benchmarks/certified_bench.py`` measures every
+  scenario). Summing the positive window shortfalls did worse (28 %, by hand; their speed
+  term favours slow paths, which there run through the big circle);
 - otherwise: ``(shortfall + tol) * width`` summed over the pieces that end as witness or
   undecided (plus ``tol * h`` when the budget ran out). A path that grazes an obstacle between
   samples gets a small violation that shrinks as it moves clear, so feasibility rules lead the
