@@ -1,10 +1,11 @@
 # `make demo` runs the main job, `make test` the test suite (everything not marked slow; what CI
-# runs), `make test-all` every test; each creates .venv when missing.
+# runs), `make test-all` every test, `make docs` the API reference (docs/api/); each creates
+# .venv when missing.
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test test-all test-slow notebooks clean
+.PHONY: demo test test-all test-slow notebooks docs clean
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -30,5 +31,8 @@ test-slow: $(VENV)/.installed-test
 notebooks: $(VENV)/.installed-test
 	$(BIN)/python notebooks/execute.py
 
+docs: $(VENV)/.installed-test
+	$(BIN)/python docs/build_api.py
+
 clean:
-	rm -rf $(VENV) results .pytest_cache .hypothesis
+	rm -rf $(VENV) results docs/api .pytest_cache .hypothesis

@@ -133,9 +133,10 @@ def build_parser() -> argparse.ArgumentParser:
     study.add_argument("--seeds", type=_positive, default=500, help="seeds per method (500)")
     study.add_argument("--methods", default="A,B,C",
                        help="comma-separated: A, B, C, or METHOD:CONSTRAINT (A,B,C)")
-    study.add_argument("--chunk-size", type=_positive, default=1000,
-                       help="restarts per compiled call; bounds memory, results do not depend "
-                            "on it (1000)")
+    study.add_argument("--chunk-size", type=_positive, default=500,
+                       help="at most this many restarts per compiled call; bounds memory and "
+                            "sets how often the progress bar moves, results do not depend on "
+                            "it (500)")
     study.add_argument("--json", type=pathlib.Path, help="write summaries as JSON")
     study.add_argument("--csv", type=pathlib.Path, help="write per-seed records as CSV")
     study.add_argument("--plot", type=pathlib.Path,
@@ -226,7 +227,7 @@ def _solve(args) -> None:
     _check_settings(args)
     problem = _load(args)
     from jaxarm import plot
-    from jaxarm.search import solve
+    from jaxarm.search import run_record, solve
 
     settings = dict(n_particles=args.particles, n_iters=args.iters, n_restarts=args.restarts,
                     seed=args.seed, constraint=args.constraint,
@@ -236,7 +237,7 @@ def _solve(args) -> None:
           f"{args.iters} iterations")
     print(result.summary())
     if args.json:
-        args.json.write_text(json.dumps(_run_record(problem, args.method, settings, result),
+        args.json.write_text(json.dumps(run_record(problem, args.method, settings, result),
                                         indent=2, allow_nan=False))
         print(f"wrote {args.json}")
     if args.plot:
@@ -245,19 +246,6 @@ def _solve(args) -> None:
     if args.gif:
         plot.animate(problem, result.best_x, args.gif)
         print(f"wrote {args.gif}")
-
-
-def _run_record(problem, method, settings: dict, result) -> dict:
-    """What ``solve --json`` writes: enough to re-run the search (the problem as a scenario
-    table, every setting, the versions) and the ``Result`` (``Result.from_dict`` reads
-    ``result`` back)."""
-    import jax
-
-    from jaxarm.scenarios import scenario_table
-
-    return {"jaxarm": _version(), "jax": jax.__version__, "scenario": problem.name,
-            "problem": scenario_table(problem), "method": method, "settings": settings,
-            "result": result.to_dict()}
 
 
 def _study(args) -> None:

@@ -74,6 +74,7 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     report = _Report(out)
+    stage = _stages(log, began, total=4)
     # The paper's tables use the paper's check: collision-free at the 101 samples of r.
     case1, case2, case3 = (scenarios.load_scenario(f"paper-case-{i}", collision="sampled")
                            for i in (1, 2, 3))
@@ -92,7 +93,7 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
         "do.", "",
     )
 
-    log(f"case 1: escape study, {n_seeds} seeds x 6 methods")
+    stage(f"case 1: escape study, {n_seeds} seeds x 6 methods")
     methods = ["A", "B", "C", "A:feasibility", "B:feasibility", "C:feasibility"]
     case1_study = study.escape_study(case1, methods, n_seeds=n_seeds, progress=progress)
     (out / "case1_study.json").write_text(case1_study.to_json())
@@ -100,18 +101,29 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
     _table_2(report, case1_study)
     _reconstruction_section(report, case1, case2, case1_study)
     _escape_section(report, case1, case1_study)
-    log("cases II and III (Table 3), Tables 4-6")
+    stage("cases II and III (Table 3), Tables 4-6")
     _table_3(report, case2, case3)
     _tables_4_5(report, case2)
     _table_6(report, case2)
-    log(f"beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine")
+    stage(f"beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine")
     report.add(*beyond_paper_section((case1, case2, case3), 20 if quick else 100, degrees))
-    log(f"shipped suite: {suite_seeds} seeds per scenario")
+    stage(f"shipped suite: {len(suite)} scenarios x {suite_seeds} seeds x 2 methods")
     _suite(report, suite, suite_seeds, progress)
     report.add(f"Total time: {time.perf_counter() - began:.0f} s.")
     path = report.write()
-    log(f"report written to {path}")
+    log(f"report written to {path} ({time.perf_counter() - began:.0f} s)")
     return path
+
+
+def _stages(log: Callable[[str], None], began: float, total: int) -> Callable[[str], None]:
+    """A logger that numbers the stages and says how long the run has taken so far:
+    ``[2/4, 41 s] cases II and III``."""
+    count = iter(range(1, total + 1))
+
+    def stage(text: str) -> None:
+        log(f"[{next(count)}/{total}, {time.perf_counter() - began:.0f} s] {text}")
+
+    return stage
 
 
 def _table_2(report: _Report, case1_study) -> None:

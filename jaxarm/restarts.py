@@ -135,18 +135,41 @@ def restart_ids(first_restart: int, n_restarts: int) -> jax.Array:
     process.
     """
     devices = jax.devices()
-    # Padding to a multiple of 8 restarts per device keeps every call on the same vectorised
-    # code path: XLA's CPU loops round differently for batches of a few restarts, which would
-    # change the last bits of a restart's fitness with the number of restarts beside it.
-    block = RESTART_BLOCK * len(devices)
-    n_padded = -(-n_restarts // block) * block
-    ids = np.arange(first_restart, first_restart + n_padded, dtype=np.int32)
+    ids = np.arange(first_restart, first_restart + padded_count(n_restarts), dtype=np.int32)
     if len(devices) == 1:
         return jnp.asarray(ids)
     mesh = jax.sharding.Mesh(np.array(devices), ("restarts",))
     sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("restarts"))
     # Each process places only the ids of its own devices (the same call works on one process).
     return jax.make_array_from_callback(ids.shape, sharding, lambda index: ids[index])
+
+
+def padded_count(n_restarts: int) -> int:
+    """Restarts actually run for ``n_restarts``: a multiple of 8 per device.
+
+    The padding keeps every call on the same vectorised code path: XLA's CPU loops round
+    differently for batches of a few restarts, which would change the last bits of a restart's
+    fitness with the number of restarts beside it.
+    """
+    block = RESTART_BLOCK * len(jax.devices())
+    return -(-n_restarts // block) * block
+
+
+# The programs this process has run (``run_restarts``), to tell a user when a call compiles.
+_RUN_PROGRAMS: set = set()
+
+
+def _program_key(problem, config, n_particles, n_iters, n_restarts, init_particles) -> tuple:
+    given = None if init_particles is None else np.shape(init_particles)
+    return (problem.spec, config.rules(), n_particles, n_iters, padded_count(n_restarts), given)
+
+
+def is_compiled(problem: Problem, config: pso.PSOConfig, n_particles: int, n_iters: int,
+                n_restarts: int, init_particles=None) -> bool:
+    """Whether ``run_restarts`` with these sizes has run in this process (else its next call
+    compiles, or loads the program from the persistent compilation cache)."""
+    return _program_key(problem, config, n_particles, n_iters, n_restarts,
+                        init_particles) in _RUN_PROGRAMS
 
 
 def to_host(array: jax.Array) -> np.ndarray:
@@ -168,4 +191,6 @@ def run_restarts(problem: Problem, config: pso.PSOConfig, constraint: str, n_par
         jnp.int32(seed), restart_ids(first_restart, n_restarts), init_particles,
         jnp.int32(pso.constraint_index(constraint)), n_particles=n_particles, n_iters=n_iters,
     )
+    _RUN_PROGRAMS.add(_program_key(problem, config, n_particles, n_iters, n_restarts,
+                                   init_particles))
     return RestartOutcome(*(to_host(a)[:n_restarts] for a in outcome))

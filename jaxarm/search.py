@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import pathlib
 import time
 from typing import NamedTuple
 
@@ -129,6 +131,54 @@ class Result(NamedTuple):
         fields = {name: data[name] for name in cls._fields if name != "restarts"}
         fields["config"] = pso.PSOConfig(**fields["config"])
         return cls(restarts=restarts, **fields)
+
+    def to_json(self) -> str:
+        """``to_dict()`` as strict JSON text."""
+        return json.dumps(self.to_dict(), allow_nan=False)
+
+    @classmethod
+    def from_json(cls, text: str) -> "Result":
+        """The ``Result`` in JSON text: ``to_json``'s, or the ``result`` of a ``solve --json``
+        record (``load_run`` gives that record's problem and settings too)."""
+        data = json.loads(text)
+        return cls.from_dict(data["result"] if "settings" in data else data)
+
+
+class SavedRun(NamedTuple):
+    """A ``solve`` call as ``jaxarm solve --json`` saves it: ``solve(problem, method,
+    **settings)`` repeats it, restart for restart."""
+
+    problem: Problem
+    method: str
+    settings: dict  # solve's keyword arguments: n_particles, n_iters, n_restarts, seed, ...
+    result: Result
+    versions: dict  # {"jaxarm": ..., "jax": ...} that produced it
+
+
+def run_record(problem: Problem, method: str, settings: dict, result: Result) -> dict:
+    """What ``solve --json`` writes: the problem as a scenario table, the method, ``solve``'s
+    keyword arguments, the ``Result`` and the jaxarm and jax versions."""
+    import jax
+
+    from jaxarm import __version__
+    from jaxarm.scenarios import scenario_table
+
+    return {"jaxarm": __version__, "jax": jax.__version__, "scenario": problem.name,
+            "problem": scenario_table(problem), "method": method, "settings": dict(settings),
+            "result": result.to_dict()}
+
+
+def load_run(path: str | pathlib.Path) -> SavedRun:
+    """The run that ``jaxarm solve --json path`` saved (see ``run_record``)."""
+    from jaxarm.scenarios import problem_from_table
+
+    data = json.loads(pathlib.Path(path).read_text())
+    missing = {"problem", "method", "settings", "result"} - set(data)
+    if missing:
+        raise ValueError(f"{path} is not a solve --json record: no {sorted(missing)}")
+    return SavedRun(problem=problem_from_table(data["problem"]), method=data["method"],
+                    settings=data["settings"], result=Result.from_dict(data["result"]),
+                    versions={"jaxarm": data.get("jaxarm"), "jax": data.get("jax")})
 
 
 def _plain(array) -> list:

@@ -21,7 +21,7 @@ from jaxarm import pso
 from jaxarm._validate import check_search, positive_int
 from jaxarm.choices import CONSTRAINTS, one_of
 from jaxarm.problem import Problem, fitness
-from jaxarm.restarts import RestartOutcome, run_restarts
+from jaxarm.restarts import RestartOutcome, is_compiled, run_restarts
 
 Z_95 = 1.959963984540054
 
@@ -220,7 +220,7 @@ class Study(NamedTuple):
 
 def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_seeds: int = 500,
                  n_iters: int = 100, n_particles: int = 20, constraint: str = "death",
-                 seed: int = 0, chunk_size: int = 1000, progress: bool | None = None) -> Study:
+                 seed: int = 0, chunk_size: int = 500, progress: bool | None = None) -> Study:
     """How often each method escapes zero fitness, over ``n_seeds`` independent seeds.
 
     Args:
@@ -231,8 +231,11 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_see
       n_iters, n_particles: PSO sizes (paper: 100 and 20).
       constraint: the constraint rule for entries that do not name one.
       seed: base seed; seed i of the study is restart i of ``solve(problem, seed=seed)``.
-      chunk_size: restarts per compiled call (bounds memory; results do not depend on it).
-      progress: show a progress bar; default: when stderr is a terminal.
+      chunk_size: at most this many restarts per compiled call; the seeds are split into
+        chunks of equal length (``chunk_length``; one program for all of them). Bounds memory
+        and sets how often the progress bar moves; results do not depend on it.
+      progress: show a progress bar (it moves once per chunk and says when a call compiles);
+        default: when stderr is a terminal.
 
     Returns:
       ``Study``.
@@ -243,16 +246,22 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_see
     chunk_size = positive_int("chunk_size", chunk_size)
     if progress is None:
         progress = sys.stderr.isatty()
-    chunks = [(start, min(chunk_size, n_seeds - start)) for start in range(0, n_seeds, chunk_size)]
     bar = _progress_bar(len(variants) * n_seeds, problem.name, progress)
+    size = chunk_length(n_seeds, chunk_size)
     results = []
     for variant in variants:
+        bar.set_description(f"{problem.name} {variant.label}")
         began = time.perf_counter()
         parts = []
-        for start, size in chunks:
-            parts.append(run_restarts(problem, variant.config, variant.constraint, n_particles,
-                                      n_iters, seed, start, size))
-            bar.update(size)
+        for start in range(0, n_seeds, size):
+            compiling = not is_compiled(problem, variant.config, n_particles, n_iters, size)
+            bar.set_postfix_str("compiling" if compiling else "")
+            # every chunk runs ``size`` restarts (one program); the last keeps what it needs
+            keep = min(size, n_seeds - start)
+            outcome = run_restarts(problem, variant.config, variant.constraint, n_particles,
+                                   n_iters, seed, start, size)
+            parts.append(RestartOutcome(*(field[:keep] for field in outcome)))
+            bar.update(keep)
         results.append(MethodStudy(variant=variant, restarts=np.arange(n_seeds),
                                    outcome=parts[0].concatenate(*parts[1:]),
                                    seconds=time.perf_counter() - began))
@@ -260,11 +269,18 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_see
     return Study(problem.name, problem.collision, n_particles, n_iters, seed, tuple(results))
 
 
+def chunk_length(n: int, chunk_size: int) -> int:
+    """Restarts per call when ``n`` are run in the fewest chunks of at most ``chunk_size``,
+    as equal as possible: 1000 in chunks of at most 500 -> 500, 1001 -> 334 (334, 334, 333)."""
+    n_chunks = -(-n // chunk_size)
+    return -(-n // n_chunks)
+
+
 def _progress_bar(total: int, label: str, enabled: bool):
     from tqdm import tqdm  # text bar: tqdm.auto warns in notebooks without ipywidgets
 
-    return tqdm(total=total, desc=f"{label} seeds", unit="seed", disable=not enabled,
-                file=sys.stderr, leave=False)
+    return tqdm(total=total, desc=label, unit="seed", disable=not enabled, file=sys.stderr,
+                leave=False)
 
 
 def sweep_coefficient(problem: Problem, x, index: int, values) -> np.ndarray:

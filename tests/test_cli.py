@@ -53,6 +53,16 @@ def test_cli_solve_json_describes_its_run_well_enough_to_repeat_it(capsys, tmp_p
     again = jaxarm.solve(problem, data["method"], **data["settings"])
     np.testing.assert_array_equal(again.restarts.best_x,
                                   jaxarm.Result.from_dict(data["result"]).restarts.best_x)
+    saved = jaxarm.load_run(tmp_path / "r.json")  # the same, in one call
+    assert saved.problem == problem and saved.versions["jaxarm"] == jaxarm.__version__
+    repeated = jaxarm.solve(saved.problem, saved.method, **saved.settings)
+    np.testing.assert_array_equal(repeated.restarts.best_x, saved.result.restarts.best_x)
+    np.testing.assert_array_equal(
+        jaxarm.Result.from_json((tmp_path / "r.json").read_text()).restarts.history,
+        saved.result.restarts.history)
+    with pytest.raises(ValueError, match="not a solve --json record"):
+        scenario.write_text(json.dumps({"result": data["result"]}))
+        jaxarm.load_run(scenario)
 
 
 def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):

@@ -1,8 +1,11 @@
 """``reproduce-paper`` (``jaxarm.reproduce``): every table of the report."""
 
+import re
+import time
+
 import pytest
 
-from jaxarm import cli
+from jaxarm import cli, reproduce
 
 
 def run_cli(capsys, *argv):
@@ -17,6 +20,8 @@ def test_cli_reproduce_paper_writes_a_report_with_every_table(capsys, tmp_path):
                            "--suite", "paper-case-2,open-space", "--suite-seeds", "4",
                            "--degrees", "6")
     assert code == 0 and "report written" in out
+    stages = [line for line in out.splitlines() if line.startswith("[")]
+    assert [line[:4] for line in stages] == ["[1/4", "[2/4", "[3/4", "[4/4"]
     report = (tmp_path / "report.md").read_text()
     for heading in ("Table 2", "Escape probability", "Table 3", "Tables 4 and 5", "Table 6",
                     "shipped suite", "reconstructed"):
@@ -24,3 +29,14 @@ def test_cli_reproduce_paper_writes_a_report_with_every_table(capsys, tmp_path):
     for image in ("case1_escape_rates.png", "case1_motion.png", "suite_escape_rates.png"):
         assert f"]({image})" in report and (tmp_path / image).stat().st_size > 5000
     assert len((tmp_path / "case1_study.csv").read_text().splitlines()) == 1 + 6 * 8
+
+
+def test_stage_lines_are_numbered_and_timed():
+    lines = []
+    stage = reproduce._stages(lines.append, time.perf_counter() - 61.4, total=2)
+    stage("first")
+    stage("second")
+    assert re.fullmatch(r"\[1/2, 6\d s\] first", lines[0])
+    assert lines[1].startswith("[2/2, ") and lines[1].endswith(" s] second")
+    with pytest.raises(StopIteration):  # more stages than announced is a bug, not a line
+        stage("third")

@@ -157,8 +157,9 @@ def test_result_nests_the_restarts_and_round_trips_through_json(case2):
     # the flat names of the documented API read the same arrays
     assert result.restart_best_x is outcome.best_x
     assert result.restart_escape_iter is outcome.escape_iter
-    text = json.dumps(result.to_dict(), allow_nan=False)  # strict JSON: NaN written as null
-    loaded = jaxarm.Result.from_dict(json.loads(text))
+    text = result.to_json()  # strict JSON: NaN written as null
+    assert "NaN" not in text and json.loads(text) == result.to_dict()
+    loaded = jaxarm.Result.from_json(text)
     for name in outcome._fields:
         np.testing.assert_array_equal(getattr(loaded.restarts, name), getattr(outcome, name))
     assert loaded._replace(restarts=outcome) == result._replace(restarts=outcome)

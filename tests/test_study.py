@@ -33,6 +33,51 @@ def test_study_is_reproducible_and_chunking_does_not_matter(case2):
     np.testing.assert_array_equal(one["A"].outcome.best_x, result.restarts.best_x)
 
 
+@pytest.mark.parametrize("n, limit, length", [(10, 4, 4), (1000, 500, 500), (1001, 500, 334),
+                                               (7, 100, 7), (12, 1, 1), (999, 1000, 999)])
+def test_chunk_length_splits_the_seeds_into_the_fewest_near_equal_chunks(n, limit, length):
+    assert study.chunk_length(n, limit) == length
+
+
+class RecordingBar:
+    """Stands in for the tqdm bar: records what the study shows."""
+
+    def __init__(self):
+        self.events = []
+
+    def set_description(self, text):
+        self.events.append(("label", text))
+
+    def set_postfix_str(self, text):
+        self.events.append(("postfix", text))
+
+    def update(self, n):
+        self.events.append(("update", n))
+
+    def close(self):
+        self.events.append(("close",))
+
+
+def test_progress_moves_per_chunk_and_says_when_it_compiles(case2, monkeypatch):
+    bar = RecordingBar()
+    monkeypatch.setattr(study, "_progress_bar", lambda total, label, enabled: bar)
+    sizes = dict(n_particles=5, n_iters=7)  # a program no other test compiles
+    study.escape_study(case2, ["A", "C"], n_seeds=9, chunk_size=5, progress=True, **sizes)
+    # two chunks of 5 and 4 seeds, one program: A compiles it, C (same rules) reuses it
+    assert bar.events == [
+        ("label", "paper-case-2 A"), ("postfix", "compiling"), ("update", 5),
+        ("postfix", ""), ("update", 4),
+        ("label", "paper-case-2 C"), ("postfix", ""), ("update", 5),
+        ("postfix", ""), ("update", 4), ("close",)]
+    bar.events.clear()
+    study.escape_study(case2, ["B:feasibility"], n_seeds=9, chunk_size=5, progress=True,
+                       **sizes)
+    assert ("postfix", "compiling") not in bar.events  # the constraint rule is data
+    bar.events.clear()
+    study.escape_study(case2, ["A"], n_seeds=9, chunk_size=9, progress=True, **sizes)
+    assert bar.events[1:3] == [("postfix", "compiling"), ("update", 9)]  # 9 -> 16 run: new
+
+
 def test_study_summaries_tables_and_records(case2):
     result = study.escape_study(case2, ["A", "C"], n_seeds=6, constraint="feasibility", **SMALL)
     assert [m.variant.label for m in result.methods] == ["A:feasibility", "C:feasibility"]

@@ -218,6 +218,16 @@ def _problem(data: dict, default_name: str) -> Problem:
     )
 
 
+def problem_from_table(table: dict) -> Problem:
+    """The problem that a scenario table describes (a parsed scenario file, or
+    ``scenario_table``'s output); a missing, unknown or invalid key raises ``ScenarioError``
+    naming it."""
+    try:
+        return _problem(table, "unnamed")
+    except (ValueError, TypeError) as error:
+        raise ScenarioError(str(error)) from None
+
+
 def scenario_table(problem: Problem) -> dict:
     """``problem`` in the scenario schema, as plain dicts, lists and numbers."""
     world = problem.world
