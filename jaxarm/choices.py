@@ -1,13 +1,14 @@
 """The names the library accepts, kept free of JAX so the CLI can offer them without loading it.
 
-``pso.PRESETS``, ``pso.constraint_rule`` and ``Problem`` check their arguments against these
+``pso.PRESETS``, ``constraints.constraint_index`` and ``Problem`` check their arguments against these
 tuples; ``jaxarm.cli`` builds its ``choices=`` from them.
 """
 
 VELOCITY_RULES = ("original", "inertia", "constriction")
 TIE_BREAKS = ("first", "random")
 BETA_MODES = ("dimension", "particle")
-CONSTRAINTS = ("death", "feasibility")
+TOPOLOGIES = ("global", "ring")
+CONSTRAINTS = ("death", "feasibility", "epsilon", "penalty")  # see jaxarm.constraints
 COLLISION_MODES = ("sampled", "certified")
 PRESET_NAMES = ("A", "B", "C")  # the paper's Table 2
 

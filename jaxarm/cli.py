@@ -137,6 +137,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="at most this many restarts per compiled call; bounds memory and "
                             "sets how often the progress bar moves, results do not depend on "
                             "it (500)")
+    study.add_argument("--pairwise", action="store_true",
+                       help="also print every pair's difference in escape rate (95 %% Newcombe "
+                            "interval, Fisher exact p)")
     study.add_argument("--json", type=pathlib.Path, help="write summaries as JSON")
     study.add_argument("--csv", type=pathlib.Path, help="write per-seed records as CSV")
     study.add_argument("--plot", type=pathlib.Path,
@@ -265,7 +268,7 @@ def _study(args) -> None:
                           chunk_size=args.chunk_size)
     print(f"{problem.name}: {args.seeds} seeds x {args.particles} particles x {args.iters} "
           f"iterations, {problem.collision} collision check")
-    print(result.table())
+    print(result.table(pairwise=args.pairwise))
     for path, text in ((args.json, result.to_json), (args.csv, result.to_csv)):
         if path:
             path.write_text(text())

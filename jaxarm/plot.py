@@ -136,7 +136,9 @@ def plot_escape_rates(study, ax=None, title: str | None = None):
     errors = np.abs(intervals.T - rates)
     figure, ax = _axes(ax, (max(5.5, 0.9 * len(labels) + 1.5), 3.8))
     palette = {"death": ("#1f77b4", "death penalty"), "feasibility": ("#2ca02c",
-                                                                       "feasibility rules")}
+                                                                       "feasibility rules"),
+               "epsilon": ("#ff7f0e", "epsilon-constrained"), "penalty": ("#9467bd",
+                                                                           "adaptive penalty")}
     rules = [m.variant.constraint for m in study.methods]
     ax.bar(labels, rates, yerr=errors, capsize=4, color=[palette[r][0] for r in rules])
     ax.set_ylim(0, 1.05)
@@ -152,16 +154,25 @@ def plot_escape_rates(study, ax=None, title: str | None = None):
 
 
 def plot_escape_curves(study, ax=None, title: str | None = None):
-    """Fraction of seeds escaped by each iteration, one curve per method."""
+    """Fraction of seeds escaped by each iteration, one curve per method, each with its
+    pointwise 95 % Wilson band."""
+    from jaxarm.stats import wilson_interval
+
     figure, ax = _axes(ax, (5.5, 3.5))
+    iterations = np.arange(study.n_iters + 1)
     for method in study.methods:
-        ax.step(np.arange(study.n_iters + 1), method.escape_curve(), where="post",
-                label=method.variant.label)
+        curve = method.escape_curve()
+        counts = np.rint(curve * method.n_seeds).astype(int)
+        band = np.array([wilson_interval(int(k), method.n_seeds) for k in counts])
+        (line,) = ax.step(iterations, curve, where="post", label=method.variant.label)
+        ax.fill_between(iterations, band[:, 0], band[:, 1], step="post", alpha=0.2, lw=0,
+                        color=line.get_color())
     ax.set_ylim(0, 1.02)
     ax.set_xlabel("iteration")
-    ax.set_ylabel("fraction escaped")
+    ax.set_ylabel("fraction escaped (95 % band)")
     ax.legend(fontsize=8)
-    ax.set_title(title or f"{study.problem_name}: escape by iteration")
+    ax.set_title(title or f"{study.problem_name}: escape by iteration "
+                          f"({study.methods[0].n_seeds} seeds)")
     return figure
 
 

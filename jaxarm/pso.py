@@ -25,8 +25,15 @@ particle 0's initial position until some particle becomes feasible; personal bes
 either. That is the paper's behaviour (escape by the swarm's own random motion), and it is the
 pitfall evosax fixed in its PR #109; ``tie_break="random"`` is the alternative.
 
-Scores: a non-finite score (NaN or inf coordinates, say) counts as -inf, so it never becomes a
-personal or global best.
+Topology: ``"global"`` (the paper's gbest: every particle follows the swarm's best personal
+best) or ``"ring"`` (lbest: particle i follows the best personal best among particles i - 1, i
+and i + 1, indices modulo n). The reported global best is the swarm's best personal best either
+way.
+
+Scores come from a constraint-handling rule (``jaxarm.constraints``) applied to what the
+measure function reports; every personal best is scored again at every update, so rules that
+change over the run compare like with like. A non-finite score (NaN or inf coordinates, say)
+counts as -inf, so it never becomes a personal or global best.
 """
 
 from __future__ import annotations
@@ -37,8 +44,10 @@ from typing import Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from jaxarm.choices import (BETA_MODES, CONSTRAINTS, PRESET_NAMES, TIE_BREAKS, VELOCITY_RULES,
+from jaxarm import constraints
+from jaxarm.choices import (BETA_MODES, PRESET_NAMES, TIE_BREAKS, TOPOLOGIES, VELOCITY_RULES,
                             one_of)
+from jaxarm.constraints import Measured
 
 
 class PSOParams(NamedTuple):
@@ -58,6 +67,7 @@ class SwarmRules(NamedTuple):
 
     tie_break: str  # "first" or "random"
     beta: str  # "dimension" or "particle"
+    topology: str = "global"  # "global" (gbest) or "ring" (lbest)
 
 
 class PSOConfig(NamedTuple):
@@ -78,6 +88,7 @@ class PSOConfig(NamedTuple):
     velocity_clamp: float | None = None
     tie_break: str = "first"
     beta: str = "dimension"
+    topology: str = "global"
 
     @property
     def constriction(self) -> float:
@@ -92,6 +103,7 @@ class PSOConfig(NamedTuple):
         one_of("velocity_rule", self.velocity_rule, VELOCITY_RULES)
         one_of("tie_break", self.tie_break, TIE_BREAKS)
         one_of("beta", self.beta, BETA_MODES)
+        one_of("topology", self.topology, TOPOLOGIES)
         for name in ("cognitive_coeff", "social_coeff", "inertia_start", "inertia_end",
                      "init_velocity"):
             value = getattr(self, name)
@@ -124,7 +136,7 @@ class PSOConfig(NamedTuple):
 
     def rules(self) -> SwarmRules:
         """The static part."""
-        return SwarmRules(tie_break=self.tie_break, beta=self.beta)
+        return SwarmRules(tie_break=self.tie_break, beta=self.beta, topology=self.topology)
 
 
 # The paper's Table 2 presets.
@@ -153,11 +165,12 @@ class SwarmState(NamedTuple):
     position: jax.Array  # shape=(n_particles, n_dims)
     velocity: jax.Array  # shape=(n_particles, n_dims)
     best_position: jax.Array  # shape=(n_particles, n_dims), personal bests
-    best_score: jax.Array  # shape=(n_particles,)
-    best_fitness: jax.Array  # shape=(n_particles,)
+    best: Measured  # each field shape=(n_particles,): the personal bests' measurements
+    best_score: jax.Array  # shape=(n_particles,), their scores under the rule of this update
     global_index: jax.Array  # shape=(), int32: particle whose personal best is the global best
     iteration: jax.Array  # shape=(), int32: updates done so far
     escape_iter: jax.Array  # shape=(), int32: first iteration with a feasible particle, or -1
+    rule: constraints.RuleState  # what an adaptive constraint rule remembers
 
 
 class StepInfo(NamedTuple):
@@ -169,15 +182,7 @@ class StepInfo(NamedTuple):
     n_feasible: jax.Array  # shape=(), int32: feasible particles at this iteration
 
 
-class Scored(NamedTuple):
-    """What the swarm needs to know about a batch of positions."""
-
-    score: jax.Array  # shape=(n_particles,), higher is better
-    fitness: jax.Array  # shape=(n_particles,)
-    feasible: jax.Array  # shape=(n_particles,), bool
-
-
-ScoreFn = Callable[[jax.Array], Scored]
+MeasureFn = Callable[[jax.Array], Measured]
 
 
 class Swarm(NamedTuple):
@@ -191,24 +196,27 @@ class Swarm(NamedTuple):
     step: Callable[[jax.Array, SwarmState], tuple[SwarmState, StepInfo]]
 
 
-def swarm(params: PSOParams, rules: SwarmRules, score_fn: ScoreFn, low, high, *,
-          n_particles: int, n_iters: int, init_particles=None) -> Swarm:
+def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high, *,
+          n_particles: int, n_iters: int, init_particles=None, constraint="death") -> Swarm:
     """PSO over the box [low, high] as an ``(init, step)`` pair (paper eqs. 13-16).
 
     Args:
       params, rules: ``PSOConfig.params()`` (traced) and ``PSOConfig.rules()`` (static).
-      score_fn: maps positions (n_particles, n_dims) to ``Scored``.
+      measure_fn: maps positions (n_particles, n_dims) to ``constraints.Measured``.
       low, high: the initial range, shape (n_dims,).
       n_particles: swarm size (static).
-      n_iters: total number of updates, for the inertia schedule (static).
+      n_iters: total number of updates, for the inertia and epsilon schedules (static).
       init_particles: optional given particles, shape (n_given, n_dims), n_given <=
         n_particles; they replace the first random ones (paper Table 6).
+      constraint: a name from ``CONSTRAINTS`` or its index (may be traced).
 
     Returns:
       ``Swarm``; ``init`` gives iteration 0, each ``step`` one synchronous update.
 
     Example:
-      >>> sphere = lambda x: Scored(-(x ** 2).sum(-1), -(x ** 2).sum(-1), x[:, 0] > 0)
+      >>> def sphere(x):
+      ...     value = -(x ** 2).sum(-1)
+      ...     return Measured(value, value, jnp.where(x[:, 0] > 0, 0.0, 1.0))
       >>> config = PRESETS["A"]
       >>> pair = swarm(config.params(), config.rules(), sphere, -jnp.ones(2), jnp.ones(2),
       ...              n_particles=5, n_iters=10)
@@ -217,6 +225,9 @@ def swarm(params: PSOParams, rules: SwarmRules, score_fn: ScoreFn, low, high, *,
       >>> int(state.iteration)
       1
     """
+    def scores(rule_state, measured, iteration):
+        return constraints.score(constraint, rule_state, measured, iteration, n_iters)
+
     def init(key) -> tuple[SwarmState, StepInfo]:
         position_key, velocity_key, tie_key = jax.random.split(key, 3)
         span = high - low
@@ -228,18 +239,22 @@ def swarm(params: PSOParams, rules: SwarmRules, score_fn: ScoreFn, low, high, *,
         velocity = params.init_velocity * span * jax.random.uniform(
             velocity_key, position.shape, dtype=low.dtype, minval=-1.0, maxval=1.0
         )
-        scored = _sanitise(score_fn(position))
+        measured = measure_fn(position)
+        rule_state = constraints.initial_state(measured)
+        score = scores(rule_state, measured, 0)
+        feasible = measured.violation == 0
         state = SwarmState(
             position=position,
             velocity=velocity,
             best_position=position,
-            best_score=scored.score,
-            best_fitness=scored.fitness,
-            global_index=_choose_global(tie_key, scored.score, rules.tie_break),
+            best=measured,
+            best_score=score,
+            global_index=_choose_global(tie_key, score, rules.tie_break),
             iteration=jnp.zeros((), jnp.int32),
-            escape_iter=jnp.where(scored.feasible.any(), 0, -1).astype(jnp.int32),
+            escape_iter=jnp.where(feasible.any(), 0, -1).astype(jnp.int32),
+            rule=rule_state,
         )
-        return state, _info(state, scored)
+        return state, _info(state, feasible)
 
     def step(key, state: SwarmState) -> tuple[SwarmState, StepInfo]:
         beta_key, tie_key = jax.random.split(key)
@@ -249,32 +264,55 @@ def swarm(params: PSOParams, rules: SwarmRules, score_fn: ScoreFn, low, high, *,
         iteration = state.iteration + 1
         omega = (params.inertia_start
                  + (params.inertia_end - params.inertia_start) * iteration / n_iters)
-        global_position = state.best_position[state.global_index]
+        social = _social_attractor(state, rules.topology)
         velocity = params.constriction * (
             omega * state.velocity
             + params.cognitive_coeff * beta1 * (state.best_position - state.position)
-            + params.social_coeff * beta2 * (global_position - state.position)
+            + params.social_coeff * beta2 * (social - state.position)
         )
         limit = params.velocity_clamp * (high - low)
         velocity = jnp.clip(velocity, -limit, limit).astype(state.position.dtype)
         position = state.position + velocity
-        scored = _sanitise(score_fn(position))
-        improved = scored.score > state.best_score
-        best_score = jnp.where(improved, scored.score, state.best_score)
-        escaped_now = (state.escape_iter < 0) & scored.feasible.any()
+        measured = measure_fn(position)
+        # new positions and personal bests compared under the rule of this update
+        score = scores(state.rule, measured, iteration)
+        old_score = scores(state.rule, state.best, iteration)
+        improved = score > old_score
+        best_score = jnp.where(improved, score, old_score)
+        best = jax.tree.map(lambda new, old: jnp.where(improved, new, old), measured,
+                            state.best)
+        feasible = measured.violation == 0
+        escaped_now = (state.escape_iter < 0) & feasible.any()
+        global_index = _choose_global(tie_key, best_score, rules.tie_break)
         new_state = SwarmState(
             position=position,
             velocity=velocity,
             best_position=jnp.where(improved[:, None], position, state.best_position),
+            best=best,
             best_score=best_score,
-            best_fitness=jnp.where(improved, scored.fitness, state.best_fitness),
-            global_index=_choose_global(tie_key, best_score, rules.tie_break),
+            global_index=global_index,
             iteration=iteration,
             escape_iter=jnp.where(escaped_now, iteration, state.escape_iter),
+            rule=constraints.updated_state(state.rule, best.violation[global_index] == 0),
         )
-        return new_state, _info(new_state, scored)
+        return new_state, _info(new_state, feasible)
 
     return Swarm(init=init, step=step)
+
+
+def _social_attractor(state: SwarmState, topology: str) -> jax.Array:
+    """What each particle's social term pulls towards, shape (n_particles, n_dims) or (n_dims,).
+
+    ``"global"``: the global best. ``"ring"``: the best personal best among the particle and
+    its two ring neighbours (first index on ties: i - 1, then i, then i + 1).
+    """
+    if topology == "global":
+        return state.best_position[state.global_index]
+    n = state.best_score.shape[0]
+    particles = jnp.arange(n)
+    neighbours = jnp.stack([(particles - 1) % n, particles, (particles + 1) % n], axis=1)
+    choice = jnp.argmax(state.best_score[neighbours], axis=1)
+    return state.best_position[neighbours[particles, choice]]
 
 
 def _choose_global(key, best_score, tie_break: str):
@@ -284,51 +322,10 @@ def _choose_global(key, best_score, tie_break: str):
     return jnp.argmax(jnp.where(best_score == best_score.max(), noise, -1.0)).astype(jnp.int32)
 
 
-def _sanitise(scored: Scored) -> Scored:
-    return scored._replace(score=jnp.where(jnp.isfinite(scored.score), scored.score, -jnp.inf))
-
-
-def _info(state: SwarmState, scored: Scored) -> StepInfo:
+def _info(state: SwarmState, feasible) -> StepInfo:
     return StepInfo(
         global_position=state.best_position[state.global_index],
-        global_fitness=state.best_fitness[state.global_index],
+        global_fitness=state.best.fitness[state.global_index],
         global_score=state.best_score[state.global_index],
-        n_feasible=scored.feasible.sum().astype(jnp.int32),
+        n_feasible=feasible.sum().astype(jnp.int32),
     )
-
-
-ConstraintRule = Callable[[jax.Array, jax.Array], Scored]
-
-
-def constraint_index(constraint: str) -> int:
-    """The rule's position in ``CONSTRAINTS``: how a compiled search receives it, as data."""
-    return CONSTRAINTS.index(one_of("constraint", constraint, CONSTRAINTS))
-
-
-def constraint_rule(constraint) -> ConstraintRule:
-    """How paths are ranked under a constraint-handling rule: ``(fitness, violation) -> Scored``.
-
-    - ``"death"`` (the paper's death penalty): score = fitness, 0 for any colliding path, so an
-      all-colliding swarm has no gradient of information at all.
-    - ``"feasibility"`` (Deb's feasibility rules): a feasible path beats an infeasible one;
-      among feasible paths higher fitness wins; among infeasible ones, less violation wins.
-      As one number: ``fitness`` if feasible, else ``-violation``.
-
-    ``constraint`` is a name or its ``constraint_index`` (a traced int32 under jit, so one
-    compiled program serves every rule). The returned function takes fitness and violation of
-    shape (n,) and returns ``Scored`` with arrays of shape (n,).
-
-    Example:
-      >>> rule = constraint_rule("feasibility")
-      >>> rule(jnp.array([0.2, 0.0]), jnp.array([0.0, 3.0])).score.tolist()
-      [0.2, -3.0]
-    """
-    index = constraint_index(constraint) if isinstance(constraint, str) else constraint
-
-    def rule(fitness, violation) -> Scored:
-        feasible = violation == 0
-        by_violation = (index == CONSTRAINTS.index("feasibility")) & ~feasible
-        score = jnp.where(by_violation, -violation, fitness)
-        return Scored(score=score, fitness=fitness, feasible=feasible)
-
-    return rule

@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm import pso
+from jaxarm.constraints import Measured, constraint_index
 from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, vmapped_evaluate
 
 
@@ -90,21 +91,21 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
       seed: int32 scalar.
       restart_ids: int32, shape (n_restarts,); restart i uses ``fold_in(key(seed), i)``.
       init_particles: None or shape (n_given, n_free).
-      constraint: int32 scalar, ``pso.constraint_index`` of the rule (data: death and
-        feasibility rules share one program).
+      constraint: int32 scalar, ``constraints.constraint_index`` of the rule (data: every
+        rule shares one program).
 
     Returns:
       ``RestartOutcome`` with leading axis n_restarts.
     """
     evaluate = vmapped_evaluate(spec)
-    rule = pso.constraint_rule(constraint)
 
-    def score_fn(x):
+    def measure(x):
         evaluation = evaluate(arrays, x)
-        return rule(evaluation.fitness, evaluation.violation)
+        return Measured(objective=1.0 / evaluation.distance, fitness=evaluation.fitness,
+                        violation=evaluation.violation)
 
-    swarm = pso.swarm(params, rules, score_fn, low, high, n_particles=n_particles,
-                      n_iters=n_iters, init_particles=init_particles)
+    swarm = pso.swarm(params, rules, measure, low, high, n_particles=n_particles,
+                      n_iters=n_iters, init_particles=init_particles, constraint=constraint)
 
     def one(restart):
         key = jax.random.fold_in(jax.random.key(seed), restart)
@@ -189,7 +190,7 @@ def run_restarts(problem: Problem, config: pso.PSOConfig, constraint: str, n_par
     outcome = compiled_search(
         problem.spec, problem.arrays, config.params(), config.rules(), low, high,
         jnp.int32(seed), restart_ids(first_restart, n_restarts), init_particles,
-        jnp.int32(pso.constraint_index(constraint)), n_particles=n_particles, n_iters=n_iters,
+        jnp.int32(constraint_index(constraint)), n_particles=n_particles, n_iters=n_iters,
     )
     _RUN_PROGRAMS.add(_program_key(problem, config, n_particles, n_iters, n_restarts,
                                    init_particles))

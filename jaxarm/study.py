@@ -10,7 +10,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 import sys
 import time
 from typing import NamedTuple, Sequence
@@ -22,25 +21,7 @@ from jaxarm._validate import check_search, positive_int
 from jaxarm.choices import CONSTRAINTS, one_of
 from jaxarm.problem import Problem, fitness
 from jaxarm.restarts import RestartOutcome, is_compiled, run_restarts
-
-Z_95 = 1.959963984540054
-
-
-def wilson_interval(successes: int, trials: int, z: float = Z_95) -> tuple[float, float]:
-    """Wilson score interval for a binomial proportion (95 % by default).
-
-    Example:
-      >>> [round(v, 4) for v in wilson_interval(3, 7)]
-      [0.1582, 0.7495]
-    """
-    if trials <= 0:
-        raise ValueError(f"trials must be > 0, got {trials}")
-    p = successes / trials
-    denominator = 1 + z * z / trials
-    center = (p + z * z / (2 * trials)) / denominator
-    half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / denominator
-    return max(0.0, center - half), min(1.0, center + half)
-
+from jaxarm.stats import Comparison, fisher_exact, newcombe_interval, wilson_interval
 
 class Variant(NamedTuple):
     """One row of a study: a PSO configuration under a constraint rule, and its label."""
@@ -156,8 +137,24 @@ class Study(NamedTuple):
         raise KeyError(f"no method {label!r} in this study; have "
                        f"{[m.variant.label for m in self.methods]}")
 
-    def table(self) -> str:
-        """Markdown table: escape rate with 95 % CI, escape-iteration quartiles, fitness."""
+    def compare(self, a: str, b: str) -> Comparison:
+        """Escape rate of method ``a`` minus that of ``b``: the difference, its 95 % Newcombe
+        interval and the two-sided Fisher exact p-value (same seeds, counted as independent
+        samples)."""
+        first, second = self[a], self[b]
+        counts = (int(first.escaped.sum()), first.n_seeds, int(second.escaped.sum()),
+                  second.n_seeds)
+        return Comparison(a=a, b=b, difference=first.escape_rate() - second.escape_rate(),
+                          interval=newcombe_interval(*counts), p_value=fisher_exact(*counts))
+
+    def comparisons(self) -> list[Comparison]:
+        """Every pair of methods, each later one against each earlier one."""
+        labels = [m.variant.label for m in self.methods]
+        return [self.compare(b, a) for i, a in enumerate(labels) for b in labels[i + 1:]]
+
+    def table(self, pairwise: bool = False) -> str:
+        """Markdown table: escape rate with 95 % CI, escape-iteration quartiles, fitness; with
+        ``pairwise``, a second table of every pair's difference in escape rate (``compare``)."""
         lines = [
             "| method | constraint | escaped | escape rate [95 % CI] | escape iter median [q1, q3]"
             " | best fitness median / max | time (s) |",
@@ -173,6 +170,11 @@ class Study(NamedTuple):
                 f"{fmt(s['escape_iter_q3'], '.0f')}] | {fmt(s['fitness_median'], '.4f')} / "
                 f"{fmt(s['fitness_best'], '.4f')} | {s['seconds']:.1f} |"
             )
+        if pairwise and len(self.methods) > 1:
+            lines += ["", "| comparison | difference in escape rate [95 % CI] | Fisher p |",
+                      "|---|---|---|"]
+            lines += [f"| {c.a} - {c.b} | {c.difference:+.1%} [{c.interval[0]:+.1%}, "
+                      f"{c.interval[1]:+.1%}] | {c.p_value:.3g} |" for c in self.comparisons()]
         return "\n".join(lines)
 
     def to_json(self) -> str:
@@ -187,6 +189,7 @@ class Study(NamedTuple):
                 m.summary() | {"escape_curve": m.escape_curve().round(6).tolist()}
                 for m in self.methods
             ],
+            "comparisons": [c._asdict() for c in self.comparisons()],
         }, indent=2)
 
     def records(self) -> list[dict]:

@@ -67,10 +67,10 @@ def test_cli_solve_json_describes_its_run_well_enough_to_repeat_it(capsys, tmp_p
 
 def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
     code, out, _ = run_cli(capsys, "study", "paper-case-2", "--seeds", "4", "--methods",
-                           "A,A:feasibility", "--particles", "8", "--iters", "12",
+                           "A,A:epsilon", "--particles", "8", "--iters", "12", "--pairwise",
                            "--json", str(tmp_path / "s.json"), "--csv", str(tmp_path / "s.csv"),
                            "--plot", str(tmp_path / "s.png"))
-    assert code == 0 and "escape rate" in out
+    assert code == 0 and "escape rate" in out and "| A:epsilon - A | " in out
     assert len((tmp_path / "s.csv").read_text().splitlines()) == 9
     assert len(json.loads((tmp_path / "s.json").read_text())["methods"]) == 2
     assert (tmp_path / "s.png").stat().st_size > 5000

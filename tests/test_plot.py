@@ -37,13 +37,17 @@ def test_figures_explain_themselves(tmp_path, case2):
     legend = [text.get_text() for text in ax.get_legend().get_texts()]
     assert {"start", "goal", "end-effector", "base"} <= set(legend)
     assert ax.get_xlabel() == "x (cm)" and ax.get_ylabel() == "y (cm)"
-    escape = study.escape_study(case2, ["A", "A:feasibility", "B", "C:feasibility"], n_seeds=3,
-                                **SMALL)
+    escape = study.escape_study(case2, ["A", "A:feasibility", "B", "C:feasibility", "A:epsilon",
+                                        "A:penalty"], n_seeds=3, **SMALL)
     ax = plot.plot_escape_rates(escape).axes[0]
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["death penalty",
-                                                                   "feasibility rules"]
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == [
+        "death penalty", "feasibility rules", "epsilon-constrained", "adaptive penalty"]
     assert "3 seeds" in ax.get_title()
     assert all(label.get_rotation() == 30 for label in ax.get_xticklabels())
+    ax = plot.plot_escape_curves(escape).axes[0]
+    assert len(ax.collections) == 6  # one 95 % band per method
+    band = ax.collections[0].get_paths()[0].vertices[:, 1]
+    assert band.min() >= 0 and band.max() <= 1 and "3 seeds" in ax.get_title()
 
 
 def test_plots_reject_what_they_cannot_draw(tmp_path, case2):

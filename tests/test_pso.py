@@ -5,21 +5,24 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxarm import choices, pso
+from jaxarm import choices, constraints, pso
+from jaxarm.constraints import Measured
 
 
 LOW, HIGH = jnp.full(2, -1.0), jnp.full(2, 1.0)
 
 
-def make_swarm(config, score_fn, n_particles, n_iters, low=LOW, high=HIGH):
-    return pso.swarm(config.params(), config.rules(), score_fn, low, high,
-                     n_particles=n_particles, n_iters=n_iters)
+def make_swarm(config, measure_fn, n_particles, n_iters, low=LOW, high=HIGH,
+               constraint="death"):
+    return pso.swarm(config.params(), config.rules(), measure_fn, low, high,
+                     n_particles=n_particles, n_iters=n_iters, constraint=constraint)
 
 
 def sphere(x):
     """Maximise -|x - 0.3|^2; feasible where x[0] > 0.5."""
     fitness = -jnp.sum((x - 0.3) ** 2, axis=-1)
-    return pso.Scored(score=fitness, fitness=fitness, feasible=x[:, 0] > 0.5)
+    return Measured(objective=fitness, fitness=fitness,
+                    violation=jnp.where(x[:, 0] > 0.5, 0.0, 1.0))
 
 
 def test_presets_are_the_papers_table_2():
@@ -76,7 +79,7 @@ def test_personal_and_global_bests_follow_strict_improvement():
     for t in range(5):
         previous = state
         state, info = swarm.step(jax.random.key(t), state)
-        score = np.asarray(sphere(state.position).score)
+        score = np.asarray(sphere(state.position).fitness)  # the death rule: score = fitness
         improved = score > np.asarray(previous.best_score)
         np.testing.assert_array_equal(np.asarray(state.best_score),
                                       np.where(improved, score, previous.best_score))
@@ -88,7 +91,7 @@ def test_personal_and_global_bests_follow_strict_improvement():
 
 def all_infeasible(x):
     zero = jnp.zeros(x.shape[0])
-    return pso.Scored(score=zero, fitness=zero, feasible=zero > 0)
+    return Measured(objective=zero, fitness=zero, violation=zero + 1.0)
 
 
 def test_all_infeasible_death_penalty_keeps_particle_zero_as_global_best():
@@ -118,7 +121,8 @@ def test_nan_and_inf_never_become_a_best():
     def poisoned(x):
         fitness = jnp.where(x[:, 0] > 0, jnp.nan, -jnp.sum(x**2, axis=-1))
         fitness = fitness.at[1].set(jnp.inf)
-        return pso.Scored(score=fitness, fitness=fitness, feasible=jnp.isfinite(fitness))
+        return Measured(objective=fitness, fitness=fitness,
+                        violation=jnp.where(jnp.isfinite(fitness), 0.0, 1.0))
 
     config = pso.PSOConfig("original", 2.0, 2.0, init_velocity=5.0)  # diverges quickly
     swarm = make_swarm(config, poisoned, n_particles=10, n_iters=30)
@@ -163,6 +167,10 @@ def test_presets_and_choices_agree():
         assert config.velocity_rule in choices.VELOCITY_RULES
     params = pso.PRESETS["C"].params()
     assert float(params.constriction) == pytest.approx(pso.PRESETS["C"].constriction)
-    assert pso.PRESETS["A"].rules() == pso.SwarmRules(tie_break="first", beta="dimension")
-    with pytest.raises(ValueError, match=r"constraint must be one of \('death', 'feasibility'\)"):
-        pso.constraint_rule("soft")
+    assert pso.PRESETS["A"].rules() == pso.SwarmRules(tie_break="first", beta="dimension",
+                                                      topology="global")
+    with pytest.raises(ValueError, match=r"constraint must be one of \('death', 'feasibility', "
+                                         r"'epsilon', 'penalty'\), got 'soft'"):
+        constraints.constraint_index("soft")
+    with pytest.raises(ValueError, match=r"topology must be one of \('global', 'ring'\)"):
+        pso.resolve(pso.PSOConfig(topology="star"))

@@ -4,21 +4,12 @@ import json
 
 import numpy as np
 import pytest
-from scipy import stats
 
 import jaxarm
-from jaxarm import study
+from jaxarm import stats, study
 
 
 SMALL = dict(n_particles=8, n_iters=12)
-
-
-@pytest.mark.parametrize("successes, trials", [(0, 10), (3, 7), (46, 100), (500, 500), (1, 3)])
-def test_wilson_interval_matches_a_reference(successes, trials):
-    reference = stats.binomtest(successes, trials).proportion_ci(0.95, method="wilson")
-    low, high = study.wilson_interval(successes, trials)
-    assert low == pytest.approx(reference.low, abs=1e-12)
-    assert high == pytest.approx(reference.high, abs=1e-12)
 
 
 def test_study_is_reproducible_and_chunking_does_not_matter(case2):
@@ -37,6 +28,22 @@ def test_study_is_reproducible_and_chunking_does_not_matter(case2):
                                                (7, 100, 7), (12, 1, 1), (999, 1000, 999)])
 def test_chunk_length_splits_the_seeds_into_the_fewest_near_equal_chunks(n, limit, length):
     assert study.chunk_length(n, limit) == length
+
+
+def test_compare_gives_the_difference_its_newcombe_interval_and_fishers_p(case2):
+    result = study.escape_study(case2, ["A", "A:feasibility", "C"], n_seeds=12, **SMALL)
+    a, b = result["A:feasibility"], result["A"]
+    comparison = result.compare("A:feasibility", "A")
+    counts = (int(a.escaped.sum()), 12, int(b.escaped.sum()), 12)
+    assert comparison.difference == pytest.approx(a.escape_rate() - b.escape_rate())
+    assert comparison.interval == stats.newcombe_interval(*counts)
+    assert comparison.p_value == stats.fisher_exact(*counts)
+    assert [(c.a, c.b) for c in result.comparisons()] == [
+        ("A:feasibility", "A"), ("C", "A"), ("C", "A:feasibility")]
+    table = result.table(pairwise=True)
+    assert "| A:feasibility - A | " in table and table.count("\n| C - ") == 2
+    assert "comparison" not in result.table()
+    assert len(json.loads(result.to_json())["comparisons"]) == 3
 
 
 class RecordingBar:

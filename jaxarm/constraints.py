@@ -1,0 +1,122 @@
+"""Constraint handling: how a swarm ranks paths that may collide.
+
+Every rule turns what the problem measures about a path (``Measured``: the objective 1 /
+distance, the paper's fitness, the violation) into one score to maximise. Some rules change
+over the run (epsilon) or adapt to it (penalty), so the swarm keeps each personal best's
+measurements and scores them again at every iteration: all comparisons are made under the rule
+of the moment. The rule is data (its index in ``CONSTRAINTS``, a traced int32 under jit), so
+one compiled program serves every rule.
+
+- ``"death"`` (the paper, eq. 17): score = fitness, 0 for any colliding path; an all-colliding
+  swarm sees no difference between its particles.
+- ``"feasibility"`` (Deb's feasibility rules): a collision-free path beats a colliding one;
+  between free paths the higher fitness wins, between colliding ones the smaller violation.
+  As one number: fitness if free, else ``-violation``.
+- ``"epsilon"`` (Takahama and Sakai's epsilon-constrained comparison): paths whose violation
+  is at most epsilon(t) compare by objective as if free; the others by violation. As one number:
+  objective if ``violation <= epsilon(t)``, else ``-violation``. Schedule: epsilon(0) is the
+  violation of the initial swarm's particle at the 20 % quantile of violation (theta = 0.2 N,
+  as Takahama and Sakai); ``epsilon(t) = epsilon(0) (1 - t / Tc) ** 5`` for ``t < Tc`` and 0
+  from ``Tc = n_iters / 2`` on (cp = 5; Tc is our choice for runs of ~100 iterations), so the
+  second half of the run is the feasibility rules.
+- ``"penalty"`` (an adaptive penalty, after Hadj-Alouane and Bean): score = ``objective -
+  lambda * violation``. lambda(0) = mean objective / mean violation of the initial swarm (the
+  two terms start balanced; 1 when no particle collides); after every update lambda doubles
+  while the global best collides (up to 1e6 lambda(0)) and stays while it is free. (Halving it
+  while free, as Hadj-Alouane and Bean do, let colliding paths win back the global best: on
+  death-trap half the restarts that escaped ended colliding, by hand over 300 seeds.)
+
+The reported fitness is always the paper's (0 for a colliding path): a rule changes how the
+swarm moves, never what a path is worth.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from jaxarm.choices import CONSTRAINTS, one_of
+
+EPSILON_QUANTILE = 0.2  # theta / N: the initial particle whose violation sets epsilon(0)
+EPSILON_POWER = 5.0  # cp
+EPSILON_END = 0.5  # Tc / n_iters
+PENALTY_FACTOR = 2.0  # lambda's step up while the global best collides
+PENALTY_MAX_RATIO = 1e6  # lambda stays <= lambda(0) * this (finite in float32)
+
+
+class Measured(NamedTuple):
+    """What the problem says about a batch of positions, each of shape (n,)."""
+
+    objective: jax.Array  # to maximise when constraints are ignored (jaxarm: 1 / distance)
+    fitness: jax.Array  # what is reported (the paper's eq. 17: 0 on collision)
+    violation: jax.Array  # >= 0, 0 iff feasible
+
+
+class RuleState(NamedTuple):
+    """What an adaptive rule remembers (scalars; unused by death and feasibility)."""
+
+    epsilon0: jax.Array  # shape=(), epsilon(0)
+    penalty0: jax.Array  # shape=(), lambda(0)
+    penalty: jax.Array  # shape=(), lambda now
+
+
+def constraint_index(constraint: str) -> int:
+    """The rule's position in ``CONSTRAINTS``: how a compiled search receives it, as data."""
+    return CONSTRAINTS.index(one_of("constraint", constraint, CONSTRAINTS))
+
+
+def _index(constraint):
+    return constraint_index(constraint) if isinstance(constraint, str) else constraint
+
+
+def initial_state(measured: Measured) -> RuleState:
+    """The adaptive rules' state from the initial swarm's measurements (shape (n_particles,))."""
+    violation = measured.violation
+    epsilon0 = jnp.sort(violation)[int(EPSILON_QUANTILE * (violation.shape[0] - 1))]
+    mean_violation = jnp.mean(violation)
+    balanced = jnp.mean(measured.objective) / jnp.where(mean_violation > 0, mean_violation, 1.0)
+    usable = (mean_violation > 0) & jnp.isfinite(balanced) & (balanced > 0)
+    penalty0 = jnp.where(usable, balanced, 1.0)
+    return RuleState(epsilon0=epsilon0, penalty0=penalty0.astype(violation.dtype),
+                     penalty=penalty0.astype(violation.dtype))
+
+
+def epsilon_level(state: RuleState, iteration, n_iters: int) -> jax.Array:
+    """epsilon(t) of the schedule above (shape ())."""
+    end = EPSILON_END * n_iters
+    remaining = jnp.clip(1.0 - iteration / end, 0.0, 1.0)
+    return state.epsilon0 * remaining ** EPSILON_POWER
+
+
+def score(constraint, state: RuleState, measured: Measured, iteration, n_iters: int):
+    """The scores of ``measured`` (shape (n,)) under the rule at update ``iteration``.
+
+    Example:
+      >>> free_and_colliding = Measured(jnp.array([5.0, 8.0]), jnp.array([5.0, 0.0]),
+      ...                               jnp.array([0.0, 3.0]))
+      >>> state = initial_state(free_and_colliding)
+      >>> score("feasibility", state, free_and_colliding, 1, 100).tolist()
+      [5.0, -3.0]
+    """
+    index = _index(constraint)
+    fitness, violation, objective = measured.fitness, measured.violation, measured.objective
+    feasible = violation == 0
+    epsilon = epsilon_level(state, iteration, n_iters)
+    by_rule = [
+        fitness,  # death
+        jnp.where(feasible, fitness, -violation),  # feasibility
+        jnp.where(violation <= epsilon, objective, -violation),  # epsilon
+        objective - state.penalty * violation,  # penalty
+    ]
+    result = by_rule[0]
+    for rule, value in enumerate(by_rule[1:], start=1):
+        result = jnp.where(index == rule, value, result)
+    return jnp.where(jnp.isfinite(result), result, -jnp.inf)  # NaN never becomes a best
+
+
+def updated_state(state: RuleState, global_feasible) -> RuleState:
+    """lambda after an update whose global best is (or is not) collision-free."""
+    raised = jnp.minimum(state.penalty * PENALTY_FACTOR, state.penalty0 * PENALTY_MAX_RATIO)
+    return state._replace(penalty=jnp.where(global_feasible, state.penalty, raised))

@@ -1,0 +1,82 @@
+"""Binomial statistics for escape rates: Wilson intervals, Newcombe differences, Fisher's test.
+
+Plain Python (no SciPy at run time); ``tests/test_stats.py`` checks every function against
+SciPy on the same counts.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+Z_95 = 1.959963984540054
+
+
+def wilson_interval(successes: int, trials: int, z: float = Z_95) -> tuple[float, float]:
+    """Wilson score interval for a binomial proportion (95 % by default).
+
+    Example:
+      >>> [round(v, 4) for v in wilson_interval(3, 7)]
+      [0.1582, 0.7495]
+    """
+    if trials <= 0:
+        raise ValueError(f"trials must be > 0, got {trials}")
+    if not 0 <= successes <= trials:
+        raise ValueError(f"successes must be in [0, {trials}], got {successes}")
+    p = successes / trials
+    denominator = 1 + z * z / trials
+    center = (p + z * z / (2 * trials)) / denominator
+    half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / denominator
+    return max(0.0, center - half), min(1.0, center + half)
+
+
+class Comparison(NamedTuple):
+    """Two escape rates compared: ``a - b`` with a 95 % interval, and Fisher's p-value."""
+
+    a: str  # label of the first
+    b: str  # label of the second
+    difference: float  # rate(a) - rate(b)
+    interval: tuple[float, float]  # Newcombe's hybrid score interval for the difference
+    p_value: float  # two-sided Fisher exact test of equal rates
+
+
+def newcombe_interval(successes_a: int, trials_a: int, successes_b: int, trials_b: int,
+                      z: float = Z_95) -> tuple[float, float]:
+    """Interval for ``p_a - p_b`` from the two Wilson intervals (Newcombe 1998, method 10).
+
+    Example:
+      >>> [round(v, 4) for v in newcombe_interval(56, 70, 48, 80)]
+      [0.0524, 0.3339]
+    """
+    p_a, p_b = successes_a / trials_a, successes_b / trials_b
+    low_a, high_a = wilson_interval(successes_a, trials_a, z)
+    low_b, high_b = wilson_interval(successes_b, trials_b, z)
+    below = math.sqrt((p_a - low_a) ** 2 + (high_b - p_b) ** 2)
+    above = math.sqrt((high_a - p_a) ** 2 + (p_b - low_b) ** 2)
+    return p_a - p_b - below, p_a - p_b + above
+
+
+def fisher_exact(successes_a: int, trials_a: int, successes_b: int, trials_b: int) -> float:
+    """Two-sided Fisher exact p-value for equal success rates in two groups.
+
+    The p-value sums the hypergeometric probabilities of every table with the same margins
+    that is no more likely than the observed one (SciPy's convention, with its relative
+    tolerance of 1e-7 for ties).
+    """
+    successes = successes_a + successes_b
+    total = trials_a + trials_b
+    low, high = max(0, successes - trials_b), min(successes, trials_a)
+
+    def log_probability(k: int) -> float:
+        return (_log_choose(trials_a, k) + _log_choose(trials_b, successes - k)
+                - _log_choose(total, successes))
+
+    observed = log_probability(successes_a)
+    cutoff = observed + math.log1p(1e-7)
+    p = sum(math.exp(log_probability(k)) for k in range(low, high + 1)
+            if log_probability(k) <= cutoff)
+    return min(1.0, p)
+
+
+def _log_choose(n: int, k: int) -> float:
+    return math.lgamma(n + 1) - math.lgamma(k + 1) - math.lgamma(n - k + 1)
