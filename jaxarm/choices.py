@@ -1,7 +1,7 @@
 """The names the library accepts, kept free of JAX so the CLI can offer them without loading it.
 
-``pso.PRESETS``, ``constraints.constraint_index`` and ``Problem`` check their arguments against these
-tuples; ``jaxarm.cli`` builds its ``choices=`` from them.
+``pso.PRESETS``, ``constraints.constraint_index`` and ``Problem`` check their arguments against
+these tuples; ``jaxarm.cli`` builds its ``choices=`` from them.
 """
 
 VELOCITY_RULES = ("original", "inertia", "constriction")

@@ -41,7 +41,8 @@ def test_epsilon_level_starts_at_the_quantile_and_reaches_zero_at_half_the_run()
 def test_epsilon_rule_compares_by_objective_below_the_level_then_becomes_feasibility():
     state = constraints.initial_state(MEASURED)._replace(epsilon0=jnp.float32(2.0))
     # at t = 0 violations up to 2 count as free: path 2 (objective 0.5) ranks first
-    np.testing.assert_array_equal(scores("epsilon", 0, state), np.float32([0.1, 0.2, 0.5, 0.4, -4]))
+    np.testing.assert_array_equal(scores("epsilon", 0, state),
+                                  np.float32([0.1, 0.2, 0.5, 0.4, -4]))
     assert np.argmax(scores("epsilon", 0, state)) == 2
     # from Tc = 50 on, the feasibility rules (with the objective, which is the fitness there)
     np.testing.assert_array_equal(scores("epsilon", 50, state), scores("feasibility"))
