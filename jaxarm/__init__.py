@@ -33,6 +33,8 @@ _EXPORTS = {
     "travelling_distance": "jaxarm.problem",
     "violation": "jaxarm.problem",
     "raise_degree": "jaxarm.path",
+    "FeasibleFraction": "jaxarm.feasible",
+    "feasible_fraction": "jaxarm.feasible",
     "PRESETS": "jaxarm.pso",
     "PSOConfig": "jaxarm.pso",
     "ScenarioError": "jaxarm.scenarios",

@@ -7,6 +7,7 @@
   marked (paper Fig. 12);
 - ``plot_escape_rates`` and ``plot_escape_curves``: a study's escape rates with 95 % intervals
   and the fraction escaped by each iteration;
+- ``plot_feasible_map``: a 2-D slice of the free-coefficient space, coloured by fitness;
 - ``animate``: a GIF of the motion.
 """
 
@@ -19,7 +20,7 @@ from matplotlib.figure import Figure
 
 from jaxarm._validate import positive_int
 from jaxarm.arm import joint_positions
-from jaxarm.problem import Problem, joint_path
+from jaxarm.problem import Problem, fitness, joint_path
 
 OBSTACLE_STYLE = dict(facecolor="#c9c9c9", edgecolor="#555555", linewidth=1.0, zorder=1)
 
@@ -173,6 +174,52 @@ def plot_escape_curves(study, ax=None, title: str | None = None):
     ax.legend(fontsize=8)
     ax.set_title(title or f"{study.problem_name}: escape by iteration "
                           f"({study.methods[0].n_seeds} seeds)")
+    return figure
+
+
+def plot_feasible_map(problem: Problem, x, dims=(0, 1), resolution: int = 121, bounds=None,
+                      best=None, ax=None, title: str | None = None):
+    """Fitness on the plane through ``x`` spanned by free coefficients ``dims``; paths that
+    collide (fitness 0) in grey. Answers "what does the feasible set look like?" (paper 11.3).
+
+    Args:
+      x: the slice's base point, shape (n_free,) (marked with a cross).
+      dims: the two coefficient indices varied (the others stay at x's values).
+      resolution: grid points per axis (>= 2).
+      bounds: ``((low_i, high_i), (low_j, high_j))``; default: the problem's init range.
+      best: optional second point to mark (a swarm's best, say), shape (n_free,).
+    """
+    x = _one_path(problem, x).astype(np.float64)
+    i, j = dims
+    if len(set(dims)) != 2 or not all(0 <= d < problem.n_free for d in dims):
+        raise ValueError(f"dims must be two different indices in [0, {problem.n_free}), "
+                         f"got {dims!r}")
+    resolution = positive_int("resolution", resolution, minimum=2)
+    if bounds is None:
+        low, high = problem.bounds()
+        bounds = ((low[i], high[i]), (low[j], high[j]))
+    (low_i, high_i), (low_j, high_j) = np.asarray(bounds, dtype=np.float64)
+    if not (low_i < high_i and low_j < high_j):
+        raise ValueError(f"bounds must be ((low, high), (low, high)) with low < high, "
+                         f"got {bounds!r}")
+    u, v = np.linspace(low_i, high_i, resolution), np.linspace(low_j, high_j, resolution)
+    grid = np.repeat(x[None, None], resolution, axis=0).repeat(resolution, axis=1)
+    grid[..., i], grid[..., j] = u[None, :], v[:, None]
+    values = np.asarray(fitness(problem, grid))  # (rows: v, columns: u)
+    figure, ax = _axes(ax, (5.5, 4.5))
+    ax.set_facecolor("#bdbdbd")  # colliding paths: masked, so the background shows
+    image = ax.imshow(np.ma.masked_equal(values, 0.0), origin="lower", aspect="auto",
+                      extent=(low_i, high_i, low_j, high_j), cmap="viridis")
+    figure.colorbar(image, ax=ax, label="fitness (grey: collides)")
+    ax.plot(x[i], x[j], "x", color="#d62728", ms=9, mew=2, label="x")
+    if best is not None:
+        best = _one_path(problem, best)
+        ax.plot(best[i], best[j], "*", color="white", mec="black", ms=12, label="best")
+    ax.set_xlabel(f"free coefficient {i}")
+    ax.set_ylabel(f"free coefficient {j}")
+    ax.legend(fontsize=8, loc="upper right")
+    free = float(np.mean(values > 0))
+    ax.set_title(title or f"{problem.name}: slice ({i}, {j}), {free:.1%} of it free")
     return figure
 
 

@@ -87,6 +87,11 @@ class MethodStudy(NamedTuple):
     def escape_interval(self) -> tuple[float, float]:
         return wilson_interval(int(self.escaped.sum()), self.n_seeds)
 
+    def start_escape_rate(self) -> float:
+        """Share of seeds whose initial swarm already holds a feasible path (iteration 0);
+        ``FeasibleFraction.start_escape`` predicts it from the feasible share of the range."""
+        return float(np.mean(self.outcome.escape_iter == 0))
+
     def escape_curve(self) -> np.ndarray:
         """Fraction of seeds escaped by iteration k, shape (n_iters + 1,)."""
         n_iters = self.outcome.history.shape[1] - 1
@@ -111,6 +116,7 @@ class MethodStudy(NamedTuple):
             "escape_rate": self.escape_rate(),
             "ci95_low": low,
             "ci95_high": high,
+            "start_escape_rate": self.start_escape_rate(),
             "escape_iter_q1": quartiles[0],
             "escape_iter_median": quartiles[1],
             "escape_iter_q3": quartiles[2],

@@ -64,3 +64,24 @@ def test_plots_reject_what_they_cannot_draw(tmp_path, case2):
         with pytest.raises(ValueError, match=message):
             plot.animate(case2, x, **arguments)
     assert not (tmp_path / "a.gif").exists()
+
+
+def test_feasible_map_colours_free_paths_and_greys_colliding_ones(case2):
+    x = np.array([66.7388, -28.1028, -9.8855])
+    figure = plot.plot_feasible_map(case2, x, dims=(0, 2), resolution=9, best=x)
+    ax = figure.axes[0]
+    image = ax.get_images()[0].get_array()  # masked where the path collides
+    low, high = case2.bounds()
+    u, v = np.linspace(low[0], high[0], 9), np.linspace(low[2], high[2], 9)
+    grid = np.stack(np.broadcast_arrays(u[None, :], x[1], v[:, None]), axis=-1)
+    expected = np.asarray(jaxarm.fitness(case2, grid))
+    np.testing.assert_array_equal(image.mask, expected == 0)
+    np.testing.assert_allclose(image.filled(0.0), expected)
+    assert {t.get_text() for t in ax.get_legend().get_texts()} == {"x", "best"}
+    assert f"{np.mean(expected > 0):.1%} of it free" in ax.get_title()
+    for kwargs, message in ((dict(dims=(1, 1)), "dims must be two different indices"),
+                            (dict(dims=(0, 3)), "dims must be two different indices"),
+                            (dict(resolution=1), "resolution must be >= 2"),
+                            (dict(bounds=((1, 0), (0, 1))), "bounds must be")):
+        with pytest.raises(ValueError, match=message):
+            plot.plot_feasible_map(case2, x, **kwargs)

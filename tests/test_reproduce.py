@@ -21,12 +21,14 @@ def test_cli_reproduce_paper_writes_a_report_with_every_table(capsys, tmp_path):
                            "--degrees", "6")
     assert code == 0 and "report written" in out
     stages = [line for line in out.splitlines() if line.startswith("[")]
-    assert [line[:4] for line in stages] == ["[1/4", "[2/4", "[3/4", "[4/4"]
+    assert [line[:4] for line in stages] == ["[1/5", "[2/5", "[3/5", "[4/5", "[5/5"]
     report = (tmp_path / "report.md").read_text()
     for heading in ("Table 2", "Escape probability", "Table 3", "Tables 4 and 5", "Table 6",
-                    "shipped suite", "reconstructed"):
+                    "shipped suite", "reconstructed", "Constraint rules compared",
+                    "| death-trap | A:epsilon |", "feasible set of case II", "free share"):
         assert heading in report
-    for image in ("case1_escape_rates.png", "case1_motion.png", "suite_escape_rates.png"):
+    for image in ("case1_escape_rates.png", "case1_motion.png", "suite_escape_rates.png",
+                  "case2_feasible_slices.png", "death-trap_rule_curves.png"):
         assert f"]({image})" in report and (tmp_path / image).stat().st_size > 5000
     assert len((tmp_path / "case1_study.csv").read_text().splitlines()) == 1 + 6 * 8
 
