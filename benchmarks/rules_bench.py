@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 
 import jax
-import numpy as np
 
 import jaxarm
 from jaxarm.reproduce import RULES
@@ -28,10 +27,9 @@ def rules_table(problem, n_seeds: int) -> list[str]:
         versus = "–"
         if method.variant.label != "A":
             c = result.compare(method.variant.label, "A")
-            versus = (f"{c.difference:+.1%} [{c.interval[0]:+.1%}, {c.interval[1]:+.1%}], "
-                      f"p = {c.p_value:.2g}")
-        fitness = outcome.best_fitness[outcome.feasible]
-        median = f"{np.median(fitness):.4f} / {fitness.max():.4f}" if fitness.size else "–"
+            versus = f"{c.difference_text()}, p = {c.p_value:.2g}"
+        median = ("–" if s["fitness_median"] is None
+                  else f"{s['fitness_median']:.4f} / {s['fitness_best']:.4f}")
         lines.append(f"| {problem.name} | {problem.collision} | {method.variant.label} | "
                      f"{s['escape_rate']:.1%} [{s['ci95_low']:.1%}, {s['ci95_high']:.1%}] | "
                      f"{outcome.feasible.mean():.1%} | {median} | {versus} | "

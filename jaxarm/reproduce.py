@@ -387,8 +387,7 @@ def _rules_section(report: _Report, problems: list, n_seeds: int, progress) -> N
             versus = "–"
             if method.variant.label != "A":
                 c = result.compare(method.variant.label, "A")
-                versus = (f"{c.difference:+.1%} [{c.interval[0]:+.1%}, {c.interval[1]:+.1%}], "
-                          f"p = {c.p_value:.2g}")
+                versus = f"{c.difference_text()}, p = {c.p_value:.2g}"
             median = "–" if s["fitness_median"] is None else f"{s['fitness_median']:.4f}"
             best = "–" if s["fitness_best"] is None else f"{s['fitness_best']:.4f}"
             iteration = ("–" if s["escape_iter_median"] is None

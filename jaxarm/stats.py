@@ -39,6 +39,11 @@ class Comparison(NamedTuple):
     interval: tuple[float, float]  # Newcombe's hybrid score interval for the difference
     p_value: float  # two-sided Fisher exact test of equal rates
 
+    def difference_text(self) -> str:
+        """The difference and its interval in percentage points: ``+12.0% [+5.1%, +18.7%]``."""
+        low, high = self.interval
+        return f"{self.difference:+.1%} [{low:+.1%}, {high:+.1%}]"
+
 
 def newcombe_interval(successes_a: int, trials_a: int, successes_b: int, trials_b: int,
                       z: float = Z_95) -> tuple[float, float]:

@@ -179,8 +179,8 @@ class Study(NamedTuple):
         if pairwise and len(self.methods) > 1:
             lines += ["", "| comparison | difference in escape rate [95 % CI] | Fisher p |",
                       "|---|---|---|"]
-            lines += [f"| {c.a} - {c.b} | {c.difference:+.1%} [{c.interval[0]:+.1%}, "
-                      f"{c.interval[1]:+.1%}] | {c.p_value:.3g} |" for c in self.comparisons()]
+            lines += [f"| {c.a} - {c.b} | {c.difference_text()} | {c.p_value:.3g} |"
+                      for c in self.comparisons()]
         return "\n".join(lines)
 
     def to_json(self) -> str:

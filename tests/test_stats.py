@@ -35,6 +35,11 @@ def test_wilson_interval_matches_scipy(successes, trials):
     assert high == pytest.approx(reference.high, abs=1e-12)
 
 
+def test_a_comparison_prints_its_difference_and_interval_in_points():
+    comparison = stats.Comparison("B", "A", 0.12, (0.051, 0.187), 0.001)
+    assert comparison.difference_text() == "+12.0% [+5.1%, +18.7%]"
+
+
 def test_bad_counts_name_the_argument():
     with pytest.raises(ValueError, match="trials must be > 0, got 0"):
         stats.wilson_interval(0, 0)
