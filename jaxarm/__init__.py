@@ -53,6 +53,9 @@ _EXPORTS = {
     "Variant": "jaxarm.study",
     "escape_study": "jaxarm.study",
     "World": "jaxarm.world",
+    "Trajectory": "jaxarm.trajectory",
+    "TrajectoryPoint": "jaxarm.trajectory",
+    "min_duration": "jaxarm.trajectory",
 }
 _RENAMED = {"available_scenarios": "available"}
 

@@ -12,7 +12,7 @@ import math
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm._validate import finite_vector
+from jaxarm._validate import finite_scalar, finite_vector
 
 
 @dataclasses.dataclass(frozen=True)
@@ -21,6 +21,10 @@ class Arm:
 
     Args:
       lengths: link lengths (cm), base first; any number of links, each finite and > 0.
+      masses: link masses (kg), one per link, each finite and >= 0, or None when unknown
+        (kinematics only; ``jaxarm.dynamics`` needs them). Links are uniform rods.
+      gravity: gravitational acceleration along -y (m/s^2), finite and >= 0; 0 for an arm
+        moving in a horizontal plane.
 
     Example:
       >>> Arm(lengths=(30.0, 30.0, 20.0)).n_joints
@@ -28,6 +32,8 @@ class Arm:
     """
 
     lengths: tuple[float, ...]
+    masses: tuple[float, ...] | None = None
+    gravity: float = 9.81
 
     def __post_init__(self):
         lengths = finite_vector("arm.lengths", self.lengths)
@@ -37,6 +43,21 @@ class Arm:
             if length <= 0:
                 raise ValueError(f"arm.lengths[{index}] must be > 0, got {float(length)!r}")
         object.__setattr__(self, "lengths", tuple(float(v) for v in lengths))
+        if self.masses is not None:
+            masses = finite_vector("arm.masses", self.masses)
+            if masses.size != lengths.size:
+                raise ValueError(f"arm.masses must have one value per link ({lengths.size}), "
+                                 f"got {masses.size}: {list(self.masses)!r}")
+            for index, mass in enumerate(masses):
+                if mass < 0:
+                    raise ValueError(f"arm.masses[{index}] must be >= 0 (kg), "
+                                     f"got {float(mass)!r}")
+            object.__setattr__(self, "masses", tuple(float(v) for v in masses))
+        gravity = finite_scalar("arm.gravity", self.gravity)
+        if gravity < 0:
+            raise ValueError(f"arm.gravity must be >= 0 (m/s^2, acting along -y), "
+                             f"got {gravity!r}")
+        object.__setattr__(self, "gravity", gravity)
 
     @property
     def n_joints(self) -> int:

@@ -18,6 +18,8 @@ import tempfile
 from jaxarm.choices import COLLISION_MODES, CONSTRAINTS, PRESET_NAMES
 
 EXIT_ERROR = 2
+LIMIT_UNITS = {"velocity": "rad/s", "acceleration": "rad/s^2", "jerk": "rad/s^3",
+               "torque": "N m"}
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 
 
@@ -49,6 +51,15 @@ def _degrees(text: str) -> tuple[int, ...]:
     if not degrees or min(degrees) < 6:
         raise argparse.ArgumentTypeError(f"degrees must be >= 6, got {text!r}")
     return degrees
+
+
+def _limit_values(text: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number or comma-separated numbers (one per "
+                                         f"joint), got {text!r}")
+    return values
 
 
 def _add_common_options(parser: argparse.ArgumentParser) -> None:
@@ -125,6 +136,21 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--plot", type=pathlib.Path,
                        help="write the motion as a figure (.png, .pdf or .svg)")
     solve.add_argument("--gif", type=pathlib.Path, help="write an animation of the motion (.gif)")
+    timing = solve.add_argument_group(
+        "trajectory in seconds",
+        "Time the best path: a given --duration, or the shortest one that meets the --max-* "
+        "limits (each a number for every joint, or one per joint, comma-separated).")
+    timing.add_argument("--duration", type=float, metavar="SECONDS",
+                        help="transfer time T of the best path")
+    for name, unit in LIMIT_UNITS.items():
+        timing.add_argument(f"--max-{name}", type=_limit_values, metavar="LIMIT",
+                            help=f"{name} limit ({unit}); the duration becomes the shortest "
+                                 "that meets every limit given")
+    timing.add_argument("--export", type=pathlib.Path, metavar="FILE",
+                        help="write the trajectory at --rate Hz (.csv: t, q, dq, ddq and tau "
+                             "columns when the arm's masses are known; .json)")
+    timing.add_argument("--rate", type=float, default=100.0,
+                        help="samples per second of --export (100)")
 
     study = commands.add_parser("study", help="escape probability over many seeds",
                                 description="Escape-probability study: every method over the "
@@ -167,8 +193,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _check_outputs(args) -> None:
     """Every output file's folder exists and every figure's suffix is known, before any work."""
-    suffixes = {"plot": FIGURE_SUFFIXES, "gif": (".gif",)}
-    for name in ("json", "csv", "plot", "gif"):
+    suffixes = {"plot": FIGURE_SUFFIXES, "gif": (".gif",), "export": (".csv", ".json")}
+    for name in ("json", "csv", "plot", "gif", "export"):
         path = getattr(args, name, None)
         if path is None:
             continue
@@ -225,10 +251,79 @@ def _check_settings(args) -> None:
                  constraint=args.constraint)
 
 
+def _timing_limits(args, problem) -> dict:
+    """The --max-* limits as ``min_duration`` keywords, checked against the problem."""
+    from jaxarm.trajectory import _limit
+
+    limits = {}
+    for name in LIMIT_UNITS:
+        values = getattr(args, f"max_{name}")
+        if values is None:
+            continue
+        try:
+            limits[f"max_{name}"] = _limit(f"max_{name}", values[0] if len(values) == 1
+                                           else values, problem.n_joints)
+        except ValueError as error:
+            raise ValueError(f"--max-{name}: {error}") from None
+    if "max_torque" in limits:
+        if problem.arm.masses is None:
+            raise ValueError(f"--max-torque: {problem.name} has no link masses ([arm] masses in "
+                             "the scenario file)")
+        from jaxarm.trajectory import check_static_load
+
+        try:
+            check_static_load(problem, limits["max_torque"])
+        except ValueError as error:
+            raise ValueError(f"--max-torque: {error}") from None
+    if limits and args.duration is not None:
+        raise ValueError("give --duration or --max-* limits, not both (with limits the duration "
+                         "is the shortest that meets them)")
+    if args.duration is not None and not (args.duration > 0 and args.duration < float("inf")):
+        raise ValueError(f"--duration must be a finite number of seconds > 0, got "
+                         f"{args.duration!r}")
+    if not args.rate > 0 or args.rate == float("inf"):
+        raise ValueError(f"--rate must be a finite number > 0 (Hz), got {args.rate!r}")
+    if args.export and not limits and args.duration is None:
+        raise ValueError("--export needs --duration or a --max-* limit to time the path")
+    return limits
+
+
+def _report_trajectory(args, problem, result, limits: dict) -> None:
+    """Time the best path (--duration or the shortest meeting --max-*), print, export."""
+    import numpy as np
+
+    from jaxarm.trajectory import Trajectory, min_duration
+
+    duration = args.duration if args.duration is not None else min_duration(
+        problem, result.best_x, **limits)
+    if not duration > 0:
+        raise ValueError("the best path does not move: there is no trajectory to time")
+    trajectory = Trajectory(problem, result.best_x, duration)
+    how = ("given" if args.duration is not None else "the shortest meeting "
+           + ", ".join(f"{name} {np.round(v, 4).tolist()}" for name, v in limits.items()))
+    print(f"trajectory: T = {duration:.6g} s ({how})")
+    peaks = trajectory.peaks()
+    if problem.arm.masses is not None:
+        peaks["torque"] = np.abs(trajectory.torques(
+            np.linspace(0.0, duration, 2001))).max(axis=0)
+    for name, values in peaks.items():
+        where = " (over 2001 times)" if name == "torque" else ""
+        print(f"  peak |{name}| {np.round(values, 4).tolist()} {LIMIT_UNITS[name]}{where}")
+    if not result.feasible:
+        print("jaxarm: warning: the best path is not collision-free", file=sys.stderr)
+    if args.export:
+        if args.export.suffix.lower() == ".csv":
+            trajectory.to_csv(args.export, rate=args.rate)
+        else:
+            trajectory.to_json(args.export, rate=args.rate)
+        print(f"wrote {args.export}")
+
+
 def _solve(args) -> None:
     _check_outputs(args)
     _check_settings(args)
     problem = _load(args)
+    limits = _timing_limits(args, problem)
     from jaxarm import plot
     from jaxarm.search import run_record, solve
 
@@ -249,6 +344,8 @@ def _solve(args) -> None:
     if args.gif:
         plot.animate(problem, result.best_x, args.gif)
         print(f"wrote {args.gif}")
+    if limits or args.duration is not None:
+        _report_trajectory(args, problem, result, limits)
 
 
 def _study(args) -> None:
@@ -324,7 +421,7 @@ def _run(args) -> None:
     if _join_processes(args):
         COMMANDS[args.command](args)
         return
-    for name in ("json", "csv", "plot", "gif"):  # only process 0 writes
+    for name in ("json", "csv", "plot", "gif", "export"):  # only process 0 writes
         if hasattr(args, name):
             setattr(args, name, None)
     with tempfile.TemporaryDirectory() as scratch, contextlib.redirect_stdout(io.StringIO()):

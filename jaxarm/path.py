@@ -167,18 +167,21 @@ def coefficients(start, goal, x, degree: int):
 
     Args:
       start, goal: joint angles, shape (n_joints,).
-      x: free parameters, shape (..., n_free).
+      x: free parameters, shape (..., n_free); a NumPy array is computed in NumPy (float64
+        for float64 input), a JAX array in JAX.
       degree: polynomial degree.
 
     Returns:
       Array of shape (..., n_joints, degree + 1), ascending powers.
     """
-    start = jnp.asarray(start, dtype=x.dtype)
-    goal = jnp.asarray(goal, dtype=x.dtype)
-    basis = jnp.asarray(basis_coefficients(degree), dtype=x.dtype)
+    xp = np if isinstance(x, np.ndarray) else jnp
+    start = xp.asarray(start, dtype=x.dtype)
+    goal = xp.asarray(goal, dtype=x.dtype)
+    basis = xp.asarray(basis_coefficients(degree), dtype=x.dtype)
     free = free_by_joint(x, start.shape[-1])
-    result = jnp.einsum("...mj,mn->...jn", free, basis[1:]) + (goal - start)[:, None] * basis[0]
-    return result.at[..., 0].add(start)
+    constant = xp.asarray(np.eye(1, degree + 1)[0], dtype=x.dtype)  # a_0 only
+    return (xp.einsum("...mj,mn->...jn", free, basis[1:]) + (goal - start)[:, None] * basis[0]
+            + start[:, None] * constant)
 
 
 def simpson_weights(n_samples: int) -> np.ndarray:

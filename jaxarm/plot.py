@@ -8,6 +8,8 @@
 - ``plot_escape_rates`` and ``plot_escape_curves``: a study's escape rates with 95 % intervals
   and the fraction escaped by each iteration;
 - ``plot_feasible_map``: a 2-D slice of the free-coefficient space, coloured by fitness;
+- ``plot_profiles``: a trajectory's position, velocity, acceleration (and torque) against time,
+  with the limits as dashed lines;
 - ``animate``: a GIF of the motion.
 """
 
@@ -220,6 +222,53 @@ def plot_feasible_map(problem: Problem, x, dims=(0, 1), resolution: int = 121, b
     ax.legend(fontsize=8, loc="upper right")
     free = float(np.mean(values > 0))
     ax.set_title(title or f"{problem.name}: slice ({i}, {j}), {free:.1%} of it free")
+    return figure
+
+
+def plot_profiles(trajectory, *, max_velocity=None, max_acceleration=None, max_torque=None,
+                  n_points: int = 401):
+    """Position, velocity, acceleration and, when the arm's masses are known, torque of every
+    joint against time; joint limits (``problem.joint_limits``) and the limits given as dashed
+    lines in each joint's colour.
+
+    Args:
+      trajectory: a ``jaxarm.Trajectory``.
+      max_velocity, max_acceleration, max_torque: a scalar or one value per joint, as for
+        ``jaxarm.min_duration``.
+      n_points: times drawn.
+
+    Returns:
+      A ``Figure`` with one panel per quantity.
+    """
+    from jaxarm.trajectory import _limit
+
+    n_points = positive_int("n_points", n_points, minimum=2)
+    problem = trajectory.problem
+    t = np.linspace(0.0, trajectory.duration, n_points)
+    state = trajectory.at(t)
+    panels = [("position", "rad", state.position, problem.joint_limits),
+              ("velocity", "rad/s", state.velocity, _limit("max_velocity", max_velocity,
+                                                            problem.n_joints)),
+              ("acceleration", "rad/s²", state.acceleration,
+               _limit("max_acceleration", max_acceleration, problem.n_joints))]
+    if problem.arm.masses is not None:
+        panels.append(("torque", "N·m", trajectory.torques(t),
+                       _limit("max_torque", max_torque, problem.n_joints)))
+    figure = Figure(figsize=(6.0, 2.0 * len(panels)), layout="constrained")
+    axes = figure.subplots(len(panels), 1, sharex=True)
+    for ax, (name, unit, values, limits) in zip(axes, panels):
+        for joint in range(problem.n_joints):
+            line, = ax.plot(t, values[:, joint], label=f"joint {joint + 1}")
+            if limits is None:
+                continue
+            bounds = limits[joint] if name == "position" else (-limits[joint], limits[joint])
+            for bound in bounds:
+                ax.axhline(bound, color=line.get_color(), linestyle="--", linewidth=0.9)
+        ax.set_ylabel(f"{name} ({unit})")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="best", fontsize="small")
+    axes[0].set_title(f"{problem.name}: T = {trajectory.duration:.4g} s")
+    axes[-1].set_xlabel("t (s)")
     return figure
 
 

@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm import certified as certified_lib
+from jaxarm import joint_limits as limits_lib
 from jaxarm import collision as collision_lib
 from jaxarm import path
 from jaxarm._validate import finite_scalar, finite_vector, positive_int
@@ -41,6 +42,7 @@ class ProblemSpec(NamedTuple):
     capacities: tuple[int, int, int]
     with_margin: bool  # margin > 0: the sampled check needs exact distances
     certify_budget: int
+    with_limits: bool = False  # joint limits are checked
 
 
 class ProblemArrays(NamedTuple):
@@ -52,6 +54,7 @@ class ProblemArrays(NamedTuple):
     world: WorldArrays
     margin: np.ndarray  # shape=(), cm
     certify_tol: np.ndarray  # shape=(), cm
+    joint_limits: np.ndarray  # shape=(n_joints, 2), rad; (-inf, inf) rows when there are none
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,6 +77,9 @@ class Problem:
         the margin by at least this much is certified free.
       certify_budget: most pieces the certified check may test per path before it gives up
         (the path then counts as colliding and ``certify`` reports it exhausted).
+      joint_limits: one ``(low, high)`` pair per joint (rad), or None. A path that leaves a
+        range at any r counts as colliding (see ``jaxarm.joint_limits``: at the samples in
+        sampled mode, for every r in certified mode).
 
     Raises:
       ValueError: naming the field and value, including a start or goal posture that collides.
@@ -100,6 +106,7 @@ class Problem:
     margin: float = 0.0
     certify_tol: float = 0.01
     certify_budget: int = 512
+    joint_limits: tuple[tuple[float, float], ...] | None = None
 
     def __post_init__(self):
         if not isinstance(self.arm, Arm):
@@ -131,6 +138,13 @@ class Problem:
             raise ValueError(
                 f"init_low must be < init_high, got {low!r} and {high!r} (index {int(bad[0])})"
             )
+        if self.joint_limits is not None:
+            set_field("joint_limits", limits_lib.validate(self.joint_limits, self.n_joints))
+            for which in ("start", "goal"):
+                for joint, angle in limits_lib.outside(self.joint_limits, getattr(self, which)):
+                    low, high = self.joint_limits[joint]
+                    raise ValueError(f"{which} joint {joint + 1} is {angle!r} rad, outside "
+                                     f"joint_limits[{joint}] = ({low!r}, {high!r})")
         capacities = self.capacities or self.world.capacities()
         self.world.pack(capacities)  # raises if the capacities are too small
         set_field("capacities", tuple(int(c) for c in capacities))
@@ -192,6 +206,7 @@ class Problem:
             capacities=self.capacities,
             with_margin=self.margin > 0,
             certify_budget=self.certify_budget,
+            with_limits=self.joint_limits is not None,
         )
 
     @functools.cached_property
@@ -203,6 +218,8 @@ class Problem:
             world=self.world.pack(self.capacities),
             margin=np.asarray(self.margin),
             certify_tol=np.asarray(self.certify_tol),
+            joint_limits=np.asarray(self.joint_limits if self.joint_limits is not None
+                                    else [(-np.inf, np.inf)] * self.n_joints),
         )
 
     def replace(self, **changes) -> "Problem":
@@ -229,6 +246,10 @@ class Problem:
                 f"  path     degree {self.degree} ({self.n_free} free coefficients), "
                 f"{self.n_samples} samples, {self.collision} collision check"
                 + (f", margin {self.margin:g} cm" if self.margin else ""),
+                *([f"  limits   {[list(pair) for pair in self.joint_limits]} rad"]
+                  if self.joint_limits is not None else []),
+                *([f"  masses   {list(self.arm.masses)} kg, gravity {self.arm.gravity:g} m/s^2"]
+                  if self.arm.masses is not None else []),
                 f"  search   init range [{_describe(self.init_low)}, {_describe(self.init_high)}]",
             ]
         )
@@ -292,6 +313,8 @@ def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x) -> Evaluation:
             arrays.start, arrays.goal, rows, spec.degree, spec.n_samples)
     else:
         violation = certify_rows(spec, arrays, rows).violation
+    if spec.with_limits:  # joint limits: their excess (rad) adds to the violation
+        violation = violation + limit_rows(spec, arrays, rows).excess
     fitness = jnp.where(violation == 0, 1.0 / distance, 0.0).astype(x.dtype)  # NaN: 0
     return jax.tree.map(lambda a: a.reshape(x.shape[:-1]),
                         Evaluation(fitness=fitness, violation=violation, distance=distance))
@@ -305,6 +328,17 @@ def certify_rows(spec: ProblemSpec, arrays: ProblemArrays, rows) -> certified_li
     return certified_lib.check(arrays.lengths, arrays.world, arrays.start, arrays.goal, rows,
                                spec.degree, spec.n_samples, arrays.certify_tol, arrays.margin,
                                spec.certify_budget)
+
+
+def limit_rows(spec: ProblemSpec, arrays: ProblemArrays, rows) -> limits_lib.LimitCheck:
+    """The joint-limit check (``jaxarm.joint_limits``) of paths ``rows``, shape (B, n_free):
+    at the samples in sampled mode, for every r in certified mode."""
+    if spec.collision == "certified":
+        return limits_lib.certified_check(arrays.joint_limits, arrays.start, arrays.goal, rows,
+                                          spec.degree, spec.n_samples)
+    excess = path.run_fold(limits_lib.sampled_fold(arrays.joint_limits, rows), arrays.start,
+                           arrays.goal, rows, spec.degree, spec.n_samples)
+    return limits_lib.LimitCheck(excess=excess, witness=excess > 0)
 
 
 @functools.cache
@@ -440,8 +474,13 @@ class Certificate(NamedTuple):
 def _certify(spec, arrays, x):
     rows = x.reshape((math.prod(x.shape[:-1]), x.shape[-1]))  # -1 fails on empty batches
     check = certify_rows(spec, arrays, rows)
+    free, colliding = check.free, check.colliding
+    if spec.with_limits:
+        limits = limit_rows(spec, arrays, rows)
+        colliding = colliding | limits.witness
+        free = free & (limits.excess == 0)
     return Certificate(*(a.reshape(x.shape[:-1]) for a in (
-        check.free, check.colliding, check.clearance, check.exhausted)))
+        free, colliding, check.clearance, check.exhausted & ~colliding)))
 
 
 def certify(problem: Problem, x) -> Certificate:
@@ -451,6 +490,8 @@ def certify(problem: Problem, x) -> Certificate:
     clearance exceeds ``problem.margin`` by at least ``problem.certify_tol`` everywhere is
     ``free``; one that comes closer than the margin at some tested time is ``colliding``; in
     between (within the tolerance of the margin), or when the budget runs out, neither.
+    With ``problem.joint_limits``, ``free`` also needs every joint proved inside its range and
+    an angle found outside makes the path ``colliding`` (``clearance`` stays the obstacles').
 
     Args:
       problem: the problem.

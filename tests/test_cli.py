@@ -65,6 +65,25 @@ def test_cli_solve_json_describes_its_run_well_enough_to_repeat_it(capsys, tmp_p
         jaxarm.load_run(scenario)
 
 
+def test_cli_solve_times_the_best_path_and_exports_it(capsys, tmp_path):
+    code, out, _ = run_cli(capsys, "solve", "paper-case-2", "--particles", "8", "--iters", "12",
+                           "--restarts", "2", "--max-velocity", "1", "--max-torque", "40,20,5",
+                           "--export", str(tmp_path / "t.csv"), "--json", str(tmp_path / "r.json"))
+    assert code == 0
+    best_x = json.loads((tmp_path / "r.json").read_text())["result"]["best_x"]
+    problem = jaxarm.load_scenario("paper-case-2")
+    duration = jaxarm.min_duration(problem, best_x, max_velocity=1.0,
+                                   max_torque=[40.0, 20.0, 5.0])
+    assert f"trajectory: T = {duration:.6g} s (the shortest meeting max_velocity" in out
+    assert "peak |velocity| [1.0," in out or ", 1.0" in out.split("peak |velocity|")[1]
+    rows = np.loadtxt(tmp_path / "t.csv", delimiter=",", skiprows=1)
+    assert rows[-1, 0] == pytest.approx(duration) and rows.shape[1] == 13
+    code, out, _ = run_cli(capsys, "solve", "paper-case-2", "--particles", "8", "--iters", "12",
+                           "--duration", "2.5", "--export", str(tmp_path / "t.json"))
+    assert code == 0 and "trajectory: T = 2.5 s (given)" in out
+    assert json.loads((tmp_path / "t.json").read_text())["duration"] == 2.5
+
+
 def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
     code, out, _ = run_cli(capsys, "study", "paper-case-2", "--seeds", "4", "--methods",
                            "A,A:epsilon", "--particles", "8", "--iters", "12", "--pairwise",
@@ -99,6 +118,20 @@ def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
         (["study", "paper-case-2", "--json", "missing/s.json"], "folder 'missing' does not exist"),
         (["study", "paper-case-2", "--csv", "missing/s.csv"], "folder 'missing' does not exist"),
         (["reproduce-paper", "--suite", "open-space,nope"], "unknown scenario 'nope'"),
+        (["solve", "paper-case-2", "--duration", "-1"], "--duration must be a finite number"),
+        (["solve", "paper-case-2", "--duration", "2", "--max-velocity", "1"],
+         "give --duration or --max-* limits, not both"),
+        (["solve", "paper-case-2", "--max-velocity", "1,2"],
+         "--max-velocity: max_velocity must have 3 values, got 2"),
+        (["solve", "paper-case-2", "--max-jerk", "0"], "--max-jerk: max_jerk[0] must be > 0"),
+        (["solve", "paper-case-2", "--max-torque", "20,50,50"],
+         "--max-torque: max_torque[0] = 20 N m is at or below joint 1's static gravity load"),
+        (["solve", "open-space", "--max-torque", "20"], "--max-torque: open-space has no link"),
+        (["solve", "paper-case-2", "--export", "t.csv"], "--export needs --duration or a --max-"),
+        (["solve", "paper-case-2", "--duration", "1", "--export", "t.txt"],
+         "--export must end in .csv, .json, got 't.txt'"),
+        (["solve", "paper-case-2", "--duration", "1", "--rate", "0", "--export", "t.csv"],
+         "--rate must be a finite number > 0"),
         (["--coordinator", "127.0.0.1:1", "solve", "paper-case-2"],
          "--coordinator, --num-processes and --process-id go together"),
         (["--coordinator", "127.0.0.1:1", "--num-processes", "2", "--process-id", "2", "solve",

@@ -9,7 +9,8 @@ import pytest
 
 import jaxarm
 
-MODULES = ["jaxarm.stats", "jaxarm.constraints", "jaxarm.pso", "jaxarm.feasible"]
+MODULES = ["jaxarm.stats", "jaxarm.constraints", "jaxarm.pso", "jaxarm.feasible",
+           "jaxarm.trajectory"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -74,6 +74,12 @@ def test_load_from_path_with_pose_and_overrides(tmp_path):
         ("[arm]\nlengths = [30.0, 30.0, 20.0]\n[start]\njoints = [0.3, 1.2, -1.5]\n"
          "pose = { x = 50.0, y = -10.0, phi = 0.0 }\n[goal]\njoints = [1, 0, 0]",
          r"start.joints \[0.3, 1.2, -1.5\] and start.pose .* disagree"),
+        ("[arm]\nlengths = [30.0]\nmasses = [1, 2]\n[start]\njoints = [0]\n[goal]\njoints = [1]",
+         r"bad.toml: arm.masses must have one value per link \(1\), got 2"),
+        ("[arm]\nlengths = [30.0]\njoint_limits = [[0.5, 2]]\n[start]\njoints = [0]\n"
+         "[goal]\njoints = [1]", r"start joint 1 is 0.0 rad, outside joint_limits\[0\]"),
+        ("[arm]\nlengths = [30.0]\ngravity = -1\n[start]\njoints = [0]\n[goal]\njoints = [1]",
+         r"arm.gravity must be >= 0"),
     ],
 )
 def test_malformed_scenarios_name_the_file_and_key(tmp_path, text, message):
@@ -104,7 +110,9 @@ def test_a_posture_given_both_ways_must_agree(tmp_path):
 def test_every_problem_written_as_a_scenario_loads_back_equal(tmp_path):
     problems = [jaxarm.load_scenario(name) for name in jaxarm.available_scenarios()]
     problems.append(jaxarm.Problem(
-        arm=jaxarm.Arm((25.0, 20.0, 15.0, 10.0)), start=[0.1, 0.2, 0.3, 0.4 + 1e-9],
+        arm=jaxarm.Arm((25.0, 20.0, 15.0, 10.0), masses=[2.0, 1.5, 1.0, 0.5], gravity=0.0),
+        joint_limits=[(-1.0, 2.0), (-3.0, 3.0), (0.0, 1.0), (-0.5, 1.5)],
+        start=[0.1, 0.2, 0.3, 0.4 + 1e-9],
         goal=[1.0, -0.5, 0.25, 1 / 3], degree=7, n_samples=51, collision="sampled",
         init_low=[-1.5, -2, -3, -4, -5, -6, -7, -8], init_high=9.25, name="mine",
         description="built in code", capacities=(4, 4, 8), margin=0.25, certify_tol=0.005,

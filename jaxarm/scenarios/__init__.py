@@ -7,6 +7,9 @@ Schema (units: cm and rad)::
     units = "cm, rad"                  # optional; the only units read (anything else: error)
     [arm]
     lengths = [30.0, 30.0, 20.0]
+    masses = [3.0, 3.0, 2.0]           # optional, kg per link (uniform rods): for torques
+    gravity = 9.81                     # optional, m/s^2 along -y (default 9.81; 0: horizontal)
+    joint_limits = [[-3.2, 3.2], [-2.5, 2.5], [-2.5, 2.5]]   # optional, rad per joint
     [start]                            # joint angles, or a pose solved by inverse kinematics
     joints = [-1.33, 2.03, -0.69]      #   (3-link arms only); if both are given they must agree
     pose = { x = 50.0, y = -10.0, phi = 0.0, elbow = 1 }
@@ -200,10 +203,11 @@ def _problem(data: dict, default_name: str) -> Problem:
         raise ScenarioError(f"units must be {UNITS!r} (lengths in cm, angles in rad), "
                             f"got {data['units']!r}")
     arm_table = _table(data, "arm")
-    _unknown(arm_table, {"lengths"}, "in [arm]: ")
+    _unknown(arm_table, {"lengths", "masses", "gravity", "joint_limits"}, "in [arm]: ")
     if "lengths" not in arm_table:
         raise ScenarioError("[arm] needs 'lengths'")
-    arm = Arm(lengths=arm_table["lengths"])
+    arm = Arm(lengths=arm_table["lengths"], masses=arm_table.get("masses"),
+              gravity=arm_table.get("gravity", Arm.gravity))
     search = _table(data, "search", required=False)
     _unknown(search, set(_SEARCH_FIELDS), "in [search]: ")
     fields = {field: search[key] for key, field in _SEARCH_FIELDS.items() if key in search}
@@ -214,6 +218,7 @@ def _problem(data: dict, default_name: str) -> Problem:
         world=_obstacles(data.get("obstacles", [])),
         name=str(data.get("name", default_name)),
         description=str(data.get("description", "")),
+        joint_limits=arm_table.get("joint_limits"),
         **fields,
     )
 
@@ -241,12 +246,24 @@ def scenario_table(problem: Problem) -> dict:
         "name": problem.name,
         "description": problem.description,
         "units": UNITS,
-        "arm": {"lengths": list(problem.arm.lengths)},
+        "arm": _arm_table(problem),
         "start": {"joints": list(problem.start)},
         "goal": {"joints": list(problem.goal)},
         "search": {key: plain(getattr(problem, field)) for key, field in _SEARCH_FIELDS.items()},
         "obstacles": obstacles,
     }
+
+
+def _arm_table(problem: Problem) -> dict:
+    arm = problem.arm
+    table = {"lengths": list(arm.lengths)}
+    if arm.masses is not None:
+        table["masses"] = list(arm.masses)
+    if arm.gravity != Arm.gravity:
+        table["gravity"] = arm.gravity
+    if problem.joint_limits is not None:
+        table["joint_limits"] = [list(pair) for pair in problem.joint_limits]
+    return table
 
 
 def to_toml(problem: Problem) -> str:

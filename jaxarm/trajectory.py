@@ -1,0 +1,333 @@
+"""A path in seconds: joint trajectories for a transfer time T (paper eqs. 8-9), their torques,
+the shortest T that respects velocity, acceleration, jerk and torque limits, and export.
+
+With r = t / T, the k-th time derivative of a joint angle is ``theta^(k)(r) / T^k`` (eqs. 8-9
+for k = 1, 2). Everything here is for one path and computed in float64: the polynomial with
+NumPy, the torques with ``jaxarm.dynamics`` (jit-compiled, under ``jax.enable_x64``).
+
+``min_duration``:
+
+- *kinematic limits*: the peak of ``|theta_j^(k)|`` over r in [0, 1] is found exactly, at the
+  ends or at a real root of the next derivative (``numpy.polynomial`` roots polished by Newton
+  steps, and a grid of r as a safeguard); then ``T >= (peak / limit)^(1/k)`` in closed form.
+- *torque limits*: torques are ``A(r) / T^2 + G(r)``, with ``A`` the torques of the motion at
+  T = 1 without gravity and ``G`` the static gravity load at the posture theta(r) (the
+  velocity and acceleration terms both scale with 1 / T^2). With ``s = 1 / T^2`` every r and
+  joint allows ``s <= (limit - sign(A) G) / |A|``; the smallest such bound over r is searched
+  on a grid of 4,001 points of r refined three times around the 8 best, and T is widened by
+  ``1e-9`` relative so that rounding never puts the peak above a limit. A torque limit at or
+  below the static load somewhere on the path can never be met: a ValueError names it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+from typing import NamedTuple
+
+import jax
+import numpy as np
+from numpy.polynomial import polynomial as poly
+
+from jaxarm import dynamics, path
+from jaxarm._validate import finite_scalar, finite_vector
+from jaxarm.problem import Problem
+
+TORQUE_GRID = 4001  # points of r for the torque search
+TORQUE_REFINE = (8, 65, 3)  # best points refined, points per local grid, rounds
+PEAK_GRID = 1001  # points of r checked beside the roots
+SAFETY = 1e-9  # relative widening of the returned duration
+
+
+class TrajectoryPoint(NamedTuple):
+    """Joint states at some times, each of shape (m, n_joints)."""
+
+    position: np.ndarray  # rad
+    velocity: np.ndarray  # rad/s
+    acceleration: np.ndarray  # rad/s^2
+    jerk: np.ndarray  # rad/s^3
+
+
+def _positive(field: str, value) -> float:
+    number = finite_scalar(field, value)
+    if number <= 0:
+        raise ValueError(f"{field} must be > 0, got {value!r}")
+    return number
+
+
+class Trajectory:
+    """One path of a problem, timed over ``duration`` seconds.
+
+    Args:
+      problem: the problem (its arm's ``masses`` are needed for ``torques``).
+      x: the path's free parameters, shape (n_free,).
+      duration: the transfer time T (s), finite and > 0.
+
+    Example:
+      >>> problem = jaxarm.load_scenario("paper-case-2")
+      >>> traj = jaxarm.Trajectory(problem, [66.7388, -28.1028, -9.8855], duration=2.0)
+      >>> state = traj.at([0.0, 1.0, 2.0])
+      >>> state.velocity.shape, round(float(abs(state.velocity[[0, 2]]).max()), 9)
+      ((3, 3), 0.0)
+    """
+
+    def __init__(self, problem: Problem, x, duration: float):
+        if not isinstance(problem, Problem):
+            raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
+        self.problem = problem
+        self.x = finite_vector("x", x, problem.n_free)
+        self.duration = _positive("duration", duration)
+        # coefficients[k]: of the k-th derivative in r, k = 0..5, shape (n_joints, degree + 1 - k)
+        base = path.coefficients(np.asarray(problem.start), np.asarray(problem.goal), self.x,
+                                 problem.degree)
+        self.coefficients = [base]
+        for _ in range(5):
+            self.coefficients.append(poly.polyder(self.coefficients[-1], axis=-1))
+
+    def __repr__(self) -> str:
+        return (f"Trajectory({self.problem.name}, x={np.round(self.x, 4).tolist()}, "
+                f"duration={self.duration:g} s)")
+
+    def _times(self, t) -> np.ndarray:
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        if t.ndim != 1:
+            raise ValueError(f"t must be a 1-D array of times (s), got shape {t.shape}")
+        bad = ~(np.isfinite(t) & (t >= 0.0) & (t <= self.duration))
+        if bad.any():
+            raise ValueError(f"t must lie in [0, duration = {self.duration:g}] s, got "
+                             f"{float(t[np.argmax(bad)])!r}")
+        return t
+
+    def derivative(self, r, order: int) -> np.ndarray:
+        """``d^order theta / dr^order`` at normalised times r (shape (m,)); (m, n_joints)."""
+        return _polyval(self.coefficients[order], r)
+
+    def at(self, t) -> TrajectoryPoint:
+        """Position, velocity, acceleration and jerk at times ``t`` (s), shape (m,).
+
+        Returns:
+          ``TrajectoryPoint`` of arrays of shape (m, n_joints).
+
+        Raises:
+          ValueError: for times outside [0, duration] or non-finite.
+        """
+        r = self._times(t) / self.duration
+        return TrajectoryPoint(*(self.derivative(r, k) / self.duration ** k for k in range(4)))
+
+    def torques(self, t) -> np.ndarray:
+        """Joint torques (N m) at times ``t`` (s), shape (m,) -> (m, n_joints).
+
+        Raises:
+          ValueError: if the arm's masses are not set, or for times outside [0, duration].
+        """
+        state = self.at(t)
+        return _torques(self.problem.arm, state.position, state.velocity, state.acceleration)
+
+    def sample_times(self, rate: float) -> np.ndarray:
+        """``0, 1/rate, 2/rate, ...`` up to the duration, which is always the last time."""
+        rate = _positive("rate", rate)
+        steps = np.arange(math.floor(self.duration * rate * (1 + 1e-12)) + 1) / rate
+        steps = steps[steps < self.duration * (1 - 1e-12)]
+        return np.append(steps, self.duration)
+
+    def table(self, rate: float = 100.0) -> dict[str, np.ndarray]:
+        """Columns sampled at ``rate`` (Hz): ``t``, ``q1..``, ``dq1..``, ``ddq1..`` and, when
+        the arm's masses are known, ``tau1..``; each of shape (m,)."""
+        t = self.sample_times(rate)
+        state = self.at(t)
+        columns = {"t": t}
+        blocks = [("q", state.position), ("dq", state.velocity), ("ddq", state.acceleration)]
+        if self.problem.arm.masses is not None:
+            blocks.append(("tau", _torques(self.problem.arm, *state[:3])))
+        for prefix, values in blocks:
+            for joint in range(values.shape[1]):
+                columns[f"{prefix}{joint + 1}"] = values[:, joint]
+        return columns
+
+    def to_csv(self, path_or_file, rate: float = 100.0) -> pathlib.Path:
+        """Write ``table(rate)`` as CSV (a header line, then one row per time); returns the
+        path. Units: s, rad, rad/s, rad/s^2, N m."""
+        columns = self.table(rate)
+        path_or_file = pathlib.Path(path_or_file)
+        np.savetxt(path_or_file, np.column_stack(list(columns.values())), delimiter=",",
+                   header=",".join(columns), comments="", fmt="%.10g")
+        return path_or_file
+
+    def to_json(self, path_or_file=None, rate: float = 100.0) -> str:
+        """The trajectory as JSON: problem name, x, duration, rate, units and ``table(rate)``'s
+        columns; written to ``path_or_file`` too when given."""
+        record = {"problem": self.problem.name, "x": self.x.tolist(),
+                  "duration": self.duration, "rate": float(rate),
+                  "units": {"t": "s", "q": "rad", "dq": "rad/s", "ddq": "rad/s^2", "tau": "N m"},
+                  "columns": {name: values.tolist() for name, values in self.table(rate).items()}}
+        text = json.dumps(record, indent=1, allow_nan=False)
+        if path_or_file is not None:
+            pathlib.Path(path_or_file).write_text(text)
+        return text
+
+    def peaks(self) -> dict[str, np.ndarray]:
+        """Peak ``|velocity|``, ``|acceleration|``, ``|jerk|`` over the motion, each shape
+        (n_joints,) (exact extrema, see ``min_duration``)."""
+        return {name: peak_derivative(self.coefficients, order) / self.duration ** order
+                for order, name in ((1, "velocity"), (2, "acceleration"), (3, "jerk"))}
+
+
+def _polyval(coefficients: np.ndarray, r) -> np.ndarray:
+    """Polynomials (n_joints, n_terms), ascending powers, at r (m,) -> (m, n_joints)."""
+    r = np.asarray(r, np.float64)
+    value = np.zeros(r.shape + coefficients.shape[:1])
+    for term in coefficients.T[::-1]:  # Horner
+        value = value * r[:, None] + term
+    return value
+
+
+def peak_derivative(coefficients: list, order: int) -> np.ndarray:
+    """``max_r |theta_j^(order)(r)|`` over [0, 1] per joint, exactly: at the ends or at a real
+    root of the next derivative in [0, 1] (each root polished by two Newton steps; a grid of
+    ``PEAK_GRID`` points of r guards against a root the eigenvalue method misses).
+
+    Args:
+      coefficients: ``Trajectory.coefficients``: derivatives 0..5 of every joint.
+      order: 1, 2 or 3.
+
+    Returns:
+      Array of shape (n_joints,).
+    """
+    peaks = []
+    for joint in range(coefficients[0].shape[0]):
+        values, slope, curve = (coefficients[order + k][joint] for k in range(3))
+        candidates = np.linspace(0.0, 1.0, PEAK_GRID).tolist()
+        if np.any(slope != 0):
+            roots = poly.polyroots(np.trim_zeros(slope, "b"))
+            real = roots.real[np.abs(roots.imag) <= 1e-7 * (1 + np.abs(roots.real))]
+            for _ in range(2):  # Newton on the slope, where it is not flat
+                denominator = poly.polyval(real, curve)
+                safe = np.abs(denominator) > 0
+                real = np.where(safe, real - poly.polyval(real, slope)
+                                / np.where(safe, denominator, 1.0), real)
+            candidates.extend(np.clip(real, 0.0, 1.0).tolist())
+        peaks.append(np.abs(poly.polyval(np.asarray(candidates), values)).max())
+    return np.asarray(peaks)
+
+
+def _torques(arm, position, velocity, acceleration, gravity=None) -> np.ndarray:
+    """Torques (N m) of ``arm`` in float64; ``gravity`` overrides the arm's."""
+    lengths, masses, arm_gravity = dynamics.rigid_body(arm)
+    gravity = arm_gravity if gravity is None else gravity
+    with jax.enable_x64(True):
+        return np.asarray(dynamics.inverse_dynamics(lengths, masses, position, velocity,
+                                                    acceleration, gravity=gravity))
+
+
+def _limit(field: str, value, n_joints: int) -> np.ndarray | None:
+    """A limit as shape (n_joints,) (a scalar applies to every joint), or None."""
+    if value is None:
+        return None
+    array = (np.full(n_joints, finite_scalar(field, value)) if np.ndim(value) == 0
+             else finite_vector(field, value, n_joints))
+    bad = np.nonzero(~(array > 0))[0]
+    if bad.size:
+        raise ValueError(f"{field}[{int(bad[0])}] must be > 0, got {float(array[bad[0]])!r}")
+    return array
+
+
+def min_duration(problem: Problem, x, *, max_velocity=None, max_acceleration=None,
+                 max_jerk=None, max_torque=None) -> float:
+    """The shortest transfer time T (s) for which the path respects every limit given.
+
+    Args:
+      problem: the problem (``max_torque`` needs its arm's masses).
+      x: the path's free parameters, shape (n_free,).
+      max_velocity, max_acceleration, max_jerk: rad/s, rad/s^2, rad/s^3; a scalar for every
+        joint or one value per joint; each > 0.
+      max_torque: N m, the same way.
+
+    Returns:
+      T in seconds (0.0 for a path that does not move and feels no gravity).
+
+    Raises:
+      ValueError: when no limit is given, a limit is not a positive finite number (or has the
+        wrong length), or a torque limit is at or below the static gravity load on the path.
+
+    Example:
+      >>> problem = jaxarm.load_scenario("paper-case-2")
+      >>> x = [66.7388, -28.1028, -9.8855]
+      >>> T = jaxarm.min_duration(problem, x, max_velocity=1.0)
+      >>> peak = jaxarm.Trajectory(problem, x, T).peaks()["velocity"].max()
+      >>> round(float(peak), 6)
+      1.0
+    """
+    n_joints = problem.n_joints if isinstance(problem, Problem) else 0
+    trajectory = Trajectory(problem, x, duration=1.0)
+    limits = {name: _limit(name, value, n_joints) for name, value in (
+        ("max_velocity", max_velocity), ("max_acceleration", max_acceleration),
+        ("max_jerk", max_jerk), ("max_torque", max_torque))}
+    if all(limit is None for limit in limits.values()):
+        raise ValueError("min_duration needs at least one of max_velocity, max_acceleration, "
+                         "max_jerk, max_torque")
+    duration = 0.0
+    for order, name in ((1, "max_velocity"), (2, "max_acceleration"), (3, "max_jerk")):
+        if limits[name] is not None:
+            peak = peak_derivative(trajectory.coefficients, order)
+            duration = max(duration, float(np.max((peak / limits[name]) ** (1.0 / order))))
+    if limits["max_torque"] is not None:
+        check_static_load(problem, limits["max_torque"])
+        duration = max(duration, _torque_duration(trajectory, limits["max_torque"]))
+    return duration * (1.0 + SAFETY)
+
+
+def check_static_load(problem: Problem, max_torque) -> np.ndarray:
+    """``max_torque`` (a scalar or one value per joint, N m) as shape (n_joints,), checked
+    against the static gravity load at the start and goal postures, which every path of the
+    problem holds: a limit at or below it raises a ValueError naming the joint."""
+    limit = _limit("max_torque", max_torque, problem.n_joints)
+    postures = np.asarray([problem.start, problem.goal])
+    still = np.zeros_like(postures)
+    static = np.abs(_torques(problem.arm, postures, still, still))
+    for which, load in zip(("start", "goal"), static):
+        joint = int(np.argmax(load - limit))
+        if load[joint] >= limit[joint]:
+            raise ValueError(f"max_torque[{joint}] = {limit[joint]:g} N m is at or below joint "
+                             f"{joint + 1}'s static gravity load {load[joint]:.4g} N m at the "
+                             f"{which} posture: no duration can meet it")
+    return limit
+
+
+def _torque_duration(trajectory: Trajectory, limit: np.ndarray) -> float:
+    """Shortest T with ``|A(r) / T^2 + G(r)| <= limit`` for all r (module docstring)."""
+    arm = trajectory.problem.arm
+    dynamics.rigid_body(arm)  # the masses are known
+
+    def split(r):  # A (inertial at T = 1, no gravity) and G (static gravity), (m, n_joints)
+        q, dq, ddq = (trajectory.derivative(r, k) for k in range(3))
+        still = np.zeros_like(q)
+        return _torques(arm, q, dq, ddq, gravity=0.0), _torques(arm, q, still, still)
+
+    def bound(r):  # the largest s = 1 / T^2 each r allows, min over joints; (m,)
+        inertial, static = split(r)
+        heavy = np.abs(static) >= limit
+        if heavy.any():
+            index, joint = np.argwhere(heavy)[0]
+            raise ValueError(
+                f"max_torque[{joint}] = {limit[joint]:g} N m is at or below joint {joint + 1}'s "
+                f"static gravity load {abs(static[index, joint]):.4g} N m at r = "
+                f"{r[index]:.4g}: no duration can meet it")
+        with np.errstate(divide="ignore"):
+            allowed = (limit - np.sign(inertial) * static) / np.abs(inertial)
+        return allowed.min(axis=1)
+
+    grid = np.linspace(0.0, 1.0, TORQUE_GRID)
+    values = bound(grid)
+    n_best, n_local, rounds = TORQUE_REFINE
+    spacing = grid[1] - grid[0]
+    centres = grid[np.argsort(values)[:n_best]]
+    best = values.min()
+    for _ in range(rounds):
+        local = np.clip(centres[:, None] + np.linspace(-spacing, spacing, n_local), 0.0, 1.0)
+        local_values = bound(local.ravel()).reshape(local.shape)
+        best = min(best, local_values.min())
+        centres = local[np.arange(n_best), local_values.argmin(axis=1)]
+        spacing *= 2.0 / (n_local - 1)
+    return 0.0 if np.isinf(best) else float(1.0 / np.sqrt(best))
+
