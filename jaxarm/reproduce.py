@@ -23,6 +23,7 @@ from jaxarm.polish import refine
 from jaxarm.feasible import feasible_fraction
 from jaxarm.pso import PSOConfig
 from jaxarm.search import exact_text, solve
+from jaxarm.trajectory import Trajectory, min_duration
 
 def _vector(x, digits=4) -> str:
     return "[" + ", ".join(f"{v:.{digits}f}" for v in np.asarray(x)) + "]"
@@ -113,6 +114,7 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
     _rules_section(report, [case1, scenarios.load_scenario("death-trap", collision="sampled")],
                    n_seeds, progress)
     _feasible_set_section(report, case2)
+    _trajectory_section(report, case2)
     stage(f"shipped suite: {len(suite)} scenarios x {suite_seeds} seeds x 2 methods")
     _suite(report, suite, suite_seeds, progress)
     report.add(f"Total time: {time.perf_counter() - began:.0f} s.")
@@ -423,6 +425,39 @@ def _feasible_set_section(report: _Report, case2) -> None:
         ax.set_ylabel(f"a6{dims[1] + 1}")
     report.figure(figure, "case2_feasible_slices.png",
                   "Case II: fitness on three slices through the optimum")
+
+
+# Limits for case II's trajectory: a modest arm, per joint where the loads differ.
+TRAJECTORY_LIMITS = {"max_velocity": 1.0, "max_acceleration": 2.0, "max_jerk": 10.0,
+                     "max_torque": (40.0, 20.0, 5.0)}
+LIMIT_UNITS = {"max_velocity": "rad/s", "max_acceleration": "rad/s²", "max_jerk": "rad/s³",
+               "max_torque": "N·m"}
+
+
+def _trajectory_section(report: _Report, case2) -> None:
+    optimum = np.array(published.CASE_2_TABLE_3[0].a6, dtype=np.float64)
+    rows = []
+    for name, limit in TRAJECTORY_LIMITS.items():
+        duration = min_duration(case2, optimum, **{name: limit})
+        rows.append(f"| {name} = {limit} {LIMIT_UNITS[name]} | {duration:.4f} |")
+    duration = min_duration(case2, optimum, **TRAJECTORY_LIMITS)
+    trajectory = Trajectory(case2, optimum, duration)
+    ends = trajectory.torques([0.0, duration])
+    report.add(
+        "## Case II's optimum in seconds (eqs. 8-9)", "",
+        "The paper gives the links' masses (3, 3 and 2 kg) but not the plane the arm moves in; "
+        "here it is vertical (gravity 9.81 m/s² along -y) and the links are uniform rods. "
+        f"Holding the start posture takes {_vector(ends[0], 2)} N·m, the goal "
+        f"{_vector(ends[1], 2)} N·m. The shortest transfer time of the paper's optimum "
+        f"{exact_text(optimum)} under each limit alone (`jaxarm.min_duration`), and under all "
+        "of them:", "",
+        "| limit | shortest T (s) |", "|---|---|", *rows,
+        f"| all four | {duration:.4f} |", "",
+    )
+    report.figure(plot.plot_profiles(trajectory, **{k: v for k, v in TRAJECTORY_LIMITS.items()
+                                                    if k != "max_jerk"}),
+                  "case2_profiles.png",
+                  f"Case II's optimum at T = {duration:.3f} s: limits dashed")
 
 
 def compare_degrees_and_refine(problems, degrees=(6, 7, 8), n_restarts: int = 100,

@@ -25,10 +25,12 @@ def test_cli_reproduce_paper_writes_a_report_with_every_table(capsys, tmp_path):
     report = (tmp_path / "report.md").read_text()
     for heading in ("Table 2", "Escape probability", "Table 3", "Tables 4 and 5", "Table 6",
                     "shipped suite", "reconstructed", "Constraint rules compared",
-                    "| death-trap | A:epsilon |", "feasible set of case II", "free share"):
+                    "| death-trap | A:epsilon |", "feasible set of case II", "free share",
+                    "Case II's optimum in seconds", "| all four | "):
         assert heading in report
     for image in ("case1_escape_rates.png", "case1_motion.png", "suite_escape_rates.png",
-                  "case2_feasible_slices.png", "death-trap_rule_curves.png"):
+                  "case2_feasible_slices.png", "death-trap_rule_curves.png",
+                  "case2_profiles.png"):
         assert f"]({image})" in report and (tmp_path / image).stat().st_size > 5000
     assert len((tmp_path / "case1_study.csv").read_text().splitlines()) == 1 + 6 * 8
 
