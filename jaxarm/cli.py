@@ -158,7 +158,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_search_options(study)
     study.add_argument("--seeds", type=_positive, default=500, help="seeds per method (500)")
     study.add_argument("--methods", default="A,B,C",
-                       help="comma-separated: A, B, C, or METHOD:CONSTRAINT (A,B,C)")
+                       help="comma-separated: A, B, C, METHOD:CONSTRAINT, or an evosax "
+                            "strategy such as evosax:CMA_ES or evosax:DE:feasibility (needs "
+                            "evosax) (A,B,C)")
     study.add_argument("--chunk-size", type=_positive, default=500,
                        help="at most this many restarts per compiled call; bounds memory and "
                             "sets how often the progress bar moves, results do not depend on "

@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm import pso
+from jaxarm import evolution, pso
 from jaxarm.constraints import Measured, constraint_index
 from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, vmapped_evaluate
 
@@ -86,7 +86,8 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
 
     Args:
       spec: static problem part; arrays: its data.
-      params, rules: ``PSOConfig.params()`` and ``.rules()``.
+      params, rules: ``PSOConfig.params()`` and ``.rules()``, or an evosax
+        ``evolution.StrategyConfig``'s (``rules`` is then the config itself).
       low, high: init range, shape (n_free,).
       seed: int32 scalar.
       restart_ids: int32, shape (n_restarts,); restart i uses ``fold_in(key(seed), i)``.
@@ -104,8 +105,12 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
         return Measured(objective=1.0 / evaluation.distance, fitness=evaluation.fitness,
                         violation=evaluation.violation)
 
-    swarm = pso.swarm(params, rules, measure, low, high, n_particles=n_particles,
-                      n_iters=n_iters, init_particles=init_particles, constraint=constraint)
+    if isinstance(rules, evolution.StrategyConfig):  # "evosax:<Strategy>"
+        swarm = evolution.strategy_swarm(rules, measure, low, high, n_particles=n_particles,
+                                         constraint=constraint)
+    else:
+        swarm = pso.swarm(params, rules, measure, low, high, n_particles=n_particles,
+                          n_iters=n_iters, init_particles=init_particles, constraint=constraint)
 
     def one(restart):
         key = jax.random.fold_in(jax.random.key(seed), restart)

@@ -10,7 +10,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm import pso
+from jaxarm import evolution, pso
 from jaxarm._validate import check_search, positive_int
 from jaxarm.problem import Problem, certify
 from jaxarm.restarts import RestartOutcome, run_restarts
@@ -129,7 +129,9 @@ class Result(NamedTuple):
             name: np.asarray(values, dtype=np.int32 if name in integer else np.float64)
             for name, values in data["restarts"].items()})
         fields = {name: data[name] for name in cls._fields if name != "restarts"}
-        fields["config"] = pso.PSOConfig(**fields["config"])
+        config = fields["config"]
+        fields["config"] = (evolution.StrategyConfig(**config) if "strategy" in config
+                            else pso.PSOConfig(**config))
         return cls(restarts=restarts, **fields)
 
     def to_json(self) -> str:
@@ -199,7 +201,8 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *, n_particles: i
 
     Args:
       problem: the problem.
-      method: "A", "B", "C" (the paper's Table 2 presets) or a ``PSOConfig``.
+      method: "A", "B", "C" (the paper's Table 2 presets), a ``PSOConfig``, or an evosax
+        strategy, ``"evosax:CMA_ES"`` (``jaxarm.evolution``; optional dependency).
       n_particles: swarm size (paper: 20).
       n_iters: PSO updates (paper: 100); iteration 0 is the initial swarm.
       n_restarts: independent swarms.
@@ -219,7 +222,11 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *, n_particles: i
       True
     """
     began = time.perf_counter()
-    config = pso.resolve(method)
+    config = evolution.resolve_method(method)
+    evolution.check_constraint(config, constraint, method_label(method))
+    if isinstance(config, evolution.StrategyConfig) and init_particles is not None:
+        raise ValueError(f"init_particles: {method_label(method)} starts from its own "
+                         "population; give init_particles to a PSO method")
     check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint)
     n_restarts = positive_int("n_restarts", n_restarts)
     if refine not in (False, True, "all"):
@@ -240,8 +247,10 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *, n_particles: i
                   seconds=time.perf_counter() - began)
 
 
-def method_label(method: str | pso.PSOConfig) -> str:
-    """A preset's name, or "custom" for a ``PSOConfig``."""
+def method_label(method) -> str:
+    """A preset's or strategy's name, or "custom" for a ``PSOConfig``."""
+    if isinstance(method, evolution.StrategyConfig):
+        return evolution.PREFIX + method.strategy
     return method if isinstance(method, str) else "custom"
 
 

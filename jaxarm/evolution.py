@@ -1,0 +1,176 @@
+"""evosax strategies on the same benchmark as the PSO: methods named ``"evosax:<Strategy>"``.
+
+A strategy (any class of ``evosax.algorithms``, e.g. ``"evosax:CMA_ES"``, or ``"evosax:DE"``
+for ``DifferentialEvolution``) becomes a ``pso.Swarm`` pair, so it runs in the restart loop of
+``jaxarm.restarts`` exactly like the PSO: vmapped over restarts in one compiled program, with
+the same seeds, the same budget (``n_particles`` evaluations at iteration 0, then
+``n_particles`` per generation for ``n_iters`` generations) and the escape iteration, history
+and best path recorded the same way.
+
+- Iteration 0: a population-based strategy starts from ``n_particles`` paths drawn uniformly
+  from the init range, like the PSO; a distribution-based one (CMA-ES, ...) from its first
+  sample around a mean drawn uniformly from the range, with ``std_init`` a quarter of the
+  range's mean width (pycma's usual advice), then told those samples' costs.
+- Costs, minimised: under the death penalty ``-fitness`` (every colliding path 0); under
+  feasibility rules ``-fitness`` for a free path and its violation (> 0) for a colliding one,
+  so that a free path beats every colliding one and less violation beats more (Deb's rules as
+  one number). evosax has no constraint handling of its own (its issues #38 and #71).
+- The best path is the lowest cost seen so far (the earliest on ties).
+
+evosax is an optional dependency (``pip install 'jaxarm[bench]'`` or ``pip install evosax``);
+naming a strategy without it installed is a ValueError saying so.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from jaxarm import pso
+from jaxarm.constraints import constraint_index
+
+PREFIX = "evosax:"
+ALIASES = {"DE": "DifferentialEvolution", "GA": "SimpleGA"}
+CONSTRAINTS = ("death", "feasibility")
+
+
+def _evosax_algorithms():
+    try:
+        from evosax import algorithms
+    except ImportError:
+        raise ValueError("evosax methods need evosax: pip install 'jaxarm[bench]' (or pip "
+                         "install evosax)") from None
+    return algorithms
+
+
+class StrategyConfig(NamedTuple):
+    """An evosax strategy as a study method (hashable: it is also the program's static rule)."""
+
+    strategy: str  # a class name of ``evosax.algorithms``, e.g. "CMA_ES"
+
+    @property
+    def velocity_rule(self) -> str:
+        """The update rule's name in reports, as for a ``PSOConfig``."""
+        return f"evosax {self.strategy}"
+
+    def params(self) -> tuple:
+        """No coefficients as data: the strategy's defaults are compiled in."""
+        return ()
+
+    def rules(self) -> "StrategyConfig":
+        return self
+
+    def validate(self) -> "StrategyConfig":
+        return resolve(PREFIX + self.strategy)
+
+
+def resolve(method: str) -> StrategyConfig:
+    """``"evosax:<Strategy>"`` as a ``StrategyConfig``, or a ValueError naming the method."""
+    name = ALIASES.get(method[len(PREFIX):], method[len(PREFIX):])
+    algorithms = _evosax_algorithms()
+    strategy = getattr(algorithms, name, None)
+    if not (isinstance(strategy, type) and issubclass(
+            strategy, algorithms.base.EvolutionaryAlgorithm)):
+        known = sorted(set(algorithms.distribution_based_algorithms)
+                       | set(algorithms.population_based_algorithms))
+        raise ValueError(f"method {method!r}: evosax has no strategy {name!r}; it has "
+                         f"{', '.join(known)} (and the aliases {', '.join(ALIASES)})")
+    return StrategyConfig(name)
+
+
+def resolve_method(method):
+    """A preset name, ``"evosax:<Strategy>"``, a ``PSOConfig`` or a ``StrategyConfig``, as the
+    validated config that ``jaxarm.restarts`` runs."""
+    if isinstance(method, StrategyConfig):
+        return method.validate()
+    if isinstance(method, str) and method.startswith(PREFIX):
+        return resolve(method)
+    return pso.resolve(method)
+
+
+def check_constraint(config, constraint: str, label: str) -> None:
+    """evosax strategies take the death penalty or feasibility rules only."""
+    if isinstance(config, StrategyConfig) and constraint not in CONSTRAINTS:
+        raise ValueError(f"constraint of {label} must be one of {CONSTRAINTS} (evosax "
+                         f"strategies), got {constraint!r}")
+
+
+def is_strategy(method) -> bool:
+    return isinstance(method, StrategyConfig) or (isinstance(method, str)
+                                                   and method.startswith(PREFIX))
+
+
+class StrategyState(NamedTuple):
+    """The evosax state and the best path seen so far."""
+
+    inner: object  # the strategy's own state (a pytree)
+    best_x: jax.Array  # shape=(n_dims,)
+    best_cost: jax.Array  # shape=()
+    best_fitness: jax.Array  # shape=(), paper eq. 17 fitness of best_x
+
+
+def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high, *,
+                   n_particles: int, constraint) -> pso.Swarm:
+    """The strategy as ``Swarm(init, step)`` (module docstring).
+
+    Args:
+      config: the strategy.
+      measure_fn: paths (n_particles, n_dims) -> ``Measured`` of shape (n_particles,).
+      low, high: init range, shape (n_dims,).
+      n_particles: population size (static).
+      constraint: int32 scalar, ``constraint_index`` of "death" or "feasibility" (data).
+    """
+    algorithms = _evosax_algorithms()
+    strategy = getattr(algorithms, config.strategy)(population_size=n_particles,
+                                                    solution=jnp.zeros_like(low))
+    params = strategy.default_params
+    if hasattr(params, "std_init"):
+        params = params.replace(std_init=jnp.mean(high - low) / 4)
+    distribution = isinstance(strategy, algorithms.distribution_based.base.
+                              DistributionBasedAlgorithm)
+    feasibility = jnp.asarray(constraint) == constraint_index("feasibility")
+
+    def costs(x):
+        measured = measure_fn(x)
+        cost = jnp.where(feasibility & (measured.violation > 0), measured.violation,
+                         -measured.fitness)
+        return cost, measured
+
+    def remember(state: StrategyState, x, cost, measured) -> tuple[StrategyState, pso.StepInfo]:
+        best = jnp.argmin(cost)  # the first on ties
+        better = cost[best] < state.best_cost
+        state = state._replace(best_x=jnp.where(better, x[best], state.best_x),
+                               best_cost=jnp.where(better, cost[best], state.best_cost),
+                               best_fitness=jnp.where(better, measured.fitness[best],
+                                                      state.best_fitness))
+        return state, pso.StepInfo(global_position=state.best_x,
+                                   global_fitness=state.best_fitness,
+                                   global_score=-state.best_cost,
+                                   n_feasible=(measured.violation == 0).sum(dtype=jnp.int32))
+
+    def init(key):
+        draw, start, ask, tell = jax.random.split(key, 4)
+        if distribution:
+            mean = jax.random.uniform(draw, low.shape, low.dtype, low, high)
+            inner = strategy.init(start, mean, params)
+            x, inner = strategy.ask(ask, inner, params)
+            cost, measured = costs(x)
+            inner, _ = strategy.tell(tell, x, cost, inner, params)
+        else:
+            x = jax.random.uniform(draw, (n_particles,) + low.shape, low.dtype, low, high)
+            cost, measured = costs(x)
+            inner = strategy.init(start, x, cost, params)
+        empty = StrategyState(inner=inner, best_x=x[0], best_cost=jnp.asarray(jnp.inf, x.dtype),
+                              best_fitness=jnp.zeros((), x.dtype))
+        return remember(empty, x, cost, measured)
+
+    def step(key, state: StrategyState):
+        ask, tell = jax.random.split(key)
+        x, inner = strategy.ask(ask, state.inner, params)
+        cost, measured = costs(x)
+        inner, _ = strategy.tell(tell, x, cost, inner, params)
+        return remember(state._replace(inner=inner), x, cost, measured)
+
+    return pso.Swarm(init=init, step=step)
