@@ -16,11 +16,9 @@ def test_a_missing_evosax_says_how_to_install_it(monkeypatch):
         study.parse_variants(["A", "evosax:CMA_ES"], "death")
 
 
-evosax = pytest.importorskip("evosax")  # the rest needs the optional dependency
-
-
 @pytest.fixture(scope="module")
 def problem():
+    pytest.importorskip("evosax")  # the tests below need the optional dependency
     return jaxarm.load_scenario("paper-case-2", collision="sampled")
 
 
