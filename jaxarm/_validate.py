@@ -44,6 +44,14 @@ def finite_scalar(field: str, value) -> float:
     return number
 
 
+def positive_scalar(field: str, value) -> float:
+    """``value`` as a finite float > 0, or a ValueError naming ``field``."""
+    number = finite_scalar(field, value)
+    if number <= 0:
+        raise ValueError(f"{field} must be > 0, got {value!r}")
+    return number
+
+
 def positive_int(field: str, value, minimum: int = 1) -> int:
     """``value`` as an int >= ``minimum``, or a ValueError naming ``field``."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):

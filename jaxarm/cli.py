@@ -255,7 +255,8 @@ def _check_settings(args) -> None:
 
 def _timing_limits(args, problem) -> dict:
     """The --max-* limits as ``min_duration`` keywords, checked against the problem."""
-    from jaxarm.trajectory import _limit
+    from jaxarm._validate import positive_scalar
+    from jaxarm.trajectory import per_joint_limit
 
     limits = {}
     for name in LIMIT_UNITS:
@@ -263,8 +264,8 @@ def _timing_limits(args, problem) -> dict:
         if values is None:
             continue
         try:
-            limits[f"max_{name}"] = _limit(f"max_{name}", values[0] if len(values) == 1
-                                           else values, problem.n_joints)
+            limits[f"max_{name}"] = per_joint_limit(
+                f"max_{name}", values[0] if len(values) == 1 else values, problem.n_joints)
         except ValueError as error:
             raise ValueError(f"--max-{name}: {error}") from None
     if "max_torque" in limits:
@@ -280,11 +281,9 @@ def _timing_limits(args, problem) -> dict:
     if limits and args.duration is not None:
         raise ValueError("give --duration or --max-* limits, not both (with limits the duration "
                          "is the shortest that meets them)")
-    if args.duration is not None and not (args.duration > 0 and args.duration < float("inf")):
-        raise ValueError(f"--duration must be a finite number of seconds > 0, got "
-                         f"{args.duration!r}")
-    if not args.rate > 0 or args.rate == float("inf"):
-        raise ValueError(f"--rate must be a finite number > 0 (Hz), got {args.rate!r}")
+    if args.duration is not None:
+        positive_scalar("--duration", args.duration)
+    positive_scalar("--rate", args.rate)
     if args.export and not limits and args.duration is None:
         raise ValueError("--export needs --duration or a --max-* limit to time the path")
     return limits

@@ -1,8 +1,9 @@
 """evosax strategies on the same benchmark as the PSO: methods named ``"evosax:<Strategy>"``.
 
-A strategy (any class of ``evosax.algorithms``, e.g. ``"evosax:CMA_ES"``, or ``"evosax:DE"``
-for ``DifferentialEvolution``) becomes a ``pso.Swarm`` pair, so it runs in the restart loop of
-``jaxarm.restarts`` exactly like the PSO: vmapped over restarts in one compiled program, with
+A strategy (a class of ``evosax.algorithms`` built from a population size and a solution
+shape alone: ``"evosax:CMA_ES"``, ``"evosax:DE"`` for ``DifferentialEvolution`` and
+``"evosax:PSO"`` are tested or tried; others are not) becomes a ``pso.Swarm`` pair, so it
+runs in the restart loop of ``jaxarm.restarts`` exactly like the PSO: vmapped over restarts in one compiled program, with
 the same seeds, the same budget (``n_particles`` evaluations at iteration 0, then
 ``n_particles`` per generation for ``n_iters`` generations) and the escape iteration, history
 and best path recorded the same way.

@@ -11,9 +11,10 @@ the violation: ``sum_j max_r max(theta_j(r) - high_j, low_j - theta_j(r), 0)``.
   within the limits is *proved* inside; one with an end value outside is a *witness* (it leaves
   the range); otherwise it is undecided and counts as violating, by its coefficients' excess.
   On a piece of width w the coefficients lie within ``w^2 / 8 * max|theta''|`` of the curve
-  (up to a factor close to 1 for degree 6), so a path that stays further than that inside its
-  limits is always proved: with 101 samples and 4 pieces per interval, ``1e-3 rad`` covers
-  ``|theta''| <= 1280 rad`` (free coefficients up to several thousand).
+  (``tests/test_joint_limits.py`` checks it on random paths), so a path that stays further
+  than that inside its limits is always proved: with 101 samples and 4 pieces per interval,
+  ``1e-3 rad`` covers ``|theta''| <= 1280 rad`` (for degree 6, ``|g_6''| <= 0.375``: free
+  coefficients up to about 3,000).
 
 The Bernstein coefficients of the basis ``[h, g_6, ..., g_d]`` (``jaxarm.path``) on each piece
 are a float64 table; a path's coefficients are the same linear combination as its angles, so

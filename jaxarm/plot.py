@@ -240,20 +240,20 @@ def plot_profiles(trajectory, *, max_velocity=None, max_acceleration=None, max_t
     Returns:
       A ``Figure`` with one panel per quantity.
     """
-    from jaxarm.trajectory import _limit
+    from jaxarm.trajectory import per_joint_limit
 
     n_points = positive_int("n_points", n_points, minimum=2)
     problem = trajectory.problem
     t = np.linspace(0.0, trajectory.duration, n_points)
     state = trajectory.at(t)
     panels = [("position", "rad", state.position, problem.joint_limits),
-              ("velocity", "rad/s", state.velocity, _limit("max_velocity", max_velocity,
-                                                            problem.n_joints)),
+              ("velocity", "rad/s", state.velocity,
+               per_joint_limit("max_velocity", max_velocity, problem.n_joints)),
               ("acceleration", "rad/s²", state.acceleration,
-               _limit("max_acceleration", max_acceleration, problem.n_joints))]
+               per_joint_limit("max_acceleration", max_acceleration, problem.n_joints))]
     if problem.arm.masses is not None:
         panels.append(("torque", "N·m", trajectory.torques(t),
-                       _limit("max_torque", max_torque, problem.n_joints)))
+                       per_joint_limit("max_torque", max_torque, problem.n_joints)))
     figure = Figure(figsize=(6.0, 2.0 * len(panels)), layout="constrained")
     axes = figure.subplots(len(panels), 1, sharex=True)
     for ax, (name, unit, values, limits) in zip(axes, panels):

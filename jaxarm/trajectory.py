@@ -15,7 +15,8 @@ NumPy, the torques with ``jaxarm.dynamics`` (jit-compiled, under ``jax.enable_x6
   velocity and acceleration terms both scale with 1 / T^2). With ``s = 1 / T^2`` every r and
   joint allows ``s <= (limit - sign(A) G) / |A|``; the smallest such bound over r is searched
   on a grid of 4,001 points of r refined three times around the 8 best, and T is widened by
-  ``1e-9`` relative so that rounding never puts the peak above a limit. A torque limit at or
+  ``1e-9`` relative against rounding (``tests/test_trajectory.py`` checks the peaks at the
+  returned T on a dense grid). A torque limit at or
   below the static load somewhere on the path can never be met: a ValueError names it.
 """
 
@@ -31,7 +32,7 @@ import numpy as np
 from numpy.polynomial import polynomial as poly
 
 from jaxarm import dynamics, path
-from jaxarm._validate import finite_scalar, finite_vector
+from jaxarm._validate import finite_scalar, finite_vector, positive_scalar
 from jaxarm.problem import Problem
 
 TORQUE_GRID = 4001  # points of r for the torque search
@@ -47,13 +48,6 @@ class TrajectoryPoint(NamedTuple):
     velocity: np.ndarray  # rad/s
     acceleration: np.ndarray  # rad/s^2
     jerk: np.ndarray  # rad/s^3
-
-
-def _positive(field: str, value) -> float:
-    number = finite_scalar(field, value)
-    if number <= 0:
-        raise ValueError(f"{field} must be > 0, got {value!r}")
-    return number
 
 
 class Trajectory:
@@ -77,7 +71,7 @@ class Trajectory:
             raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
         self.problem = problem
         self.x = finite_vector("x", x, problem.n_free)
-        self.duration = _positive("duration", duration)
+        self.duration = positive_scalar("duration", duration)
         # coefficients[k]: of the k-th derivative in r, k = 0..5, shape (n_joints, degree + 1 - k)
         base = path.coefficients(np.asarray(problem.start), np.asarray(problem.goal), self.x,
                                  problem.degree)
@@ -126,7 +120,7 @@ class Trajectory:
 
     def sample_times(self, rate: float) -> np.ndarray:
         """``0, 1/rate, 2/rate, ...`` up to the duration, which is always the last time."""
-        rate = _positive("rate", rate)
+        rate = positive_scalar("rate", rate)
         steps = np.arange(math.floor(self.duration * rate * (1 + 1e-12)) + 1) / rate
         steps = steps[steps < self.duration * (1 - 1e-12)]
         return np.append(steps, self.duration)
@@ -220,7 +214,7 @@ def _torques(arm, position, velocity, acceleration, gravity=None) -> np.ndarray:
                                                     acceleration, gravity=gravity))
 
 
-def _limit(field: str, value, n_joints: int) -> np.ndarray | None:
+def per_joint_limit(field: str, value, n_joints: int) -> np.ndarray | None:
     """A limit as shape (n_joints,) (a scalar applies to every joint), or None."""
     if value is None:
         return None
@@ -258,9 +252,8 @@ def min_duration(problem: Problem, x, *, max_velocity=None, max_acceleration=Non
       >>> round(float(peak), 6)
       1.0
     """
-    n_joints = problem.n_joints if isinstance(problem, Problem) else 0
     trajectory = Trajectory(problem, x, duration=1.0)
-    limits = {name: _limit(name, value, n_joints) for name, value in (
+    limits = {name: per_joint_limit(name, value, problem.n_joints) for name, value in (
         ("max_velocity", max_velocity), ("max_acceleration", max_acceleration),
         ("max_jerk", max_jerk), ("max_torque", max_torque))}
     if all(limit is None for limit in limits.values()):
@@ -281,7 +274,7 @@ def check_static_load(problem: Problem, max_torque) -> np.ndarray:
     """``max_torque`` (a scalar or one value per joint, N m) as shape (n_joints,), checked
     against the static gravity load at the start and goal postures, which every path of the
     problem holds: a limit at or below it raises a ValueError naming the joint."""
-    limit = _limit("max_torque", max_torque, problem.n_joints)
+    limit = per_joint_limit("max_torque", max_torque, problem.n_joints)
     postures = np.asarray([problem.start, problem.goal])
     still = np.zeros_like(postures)
     static = np.abs(_torques(problem.arm, postures, still, still))
@@ -297,7 +290,6 @@ def check_static_load(problem: Problem, max_torque) -> np.ndarray:
 def _torque_duration(trajectory: Trajectory, limit: np.ndarray) -> float:
     """Shortest T with ``|A(r) / T^2 + G(r)| <= limit`` for all r (module docstring)."""
     arm = trajectory.problem.arm
-    dynamics.rigid_body(arm)  # the masses are known
 
     def split(r):  # A (inertial at T = 1, no gravity) and G (static gravity), (m, n_joints)
         q, dq, ddq = (trajectory.derivative(r, k) for k in range(3))
