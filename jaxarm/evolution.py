@@ -3,10 +3,10 @@
 A strategy (a class of ``evosax.algorithms`` built from a population size and a solution
 shape alone: ``"evosax:CMA_ES"``, ``"evosax:DE"`` for ``DifferentialEvolution`` and
 ``"evosax:PSO"`` are tested or tried; others are not) becomes a ``pso.Swarm`` pair, so it
-runs in the restart loop of ``jaxarm.restarts`` exactly like the PSO: vmapped over restarts in one compiled program, with
-the same seeds, the same budget (``n_particles`` evaluations at iteration 0, then
-``n_particles`` per generation for ``n_iters`` generations) and the escape iteration, history
-and best path recorded the same way.
+runs in the restart loop of ``jaxarm.restarts`` exactly like the PSO: vmapped over restarts
+in one compiled program, with the same seeds, the same budget (``n_particles`` evaluations
+at iteration 0, then ``n_particles`` per generation for ``n_iters`` generations) and the
+escape iteration, history and best path recorded the same way.
 
 - Iteration 0: a population-based strategy starts from ``n_particles`` paths drawn uniformly
   from the init range, like the PSO; a distribution-based one (CMA-ES, ...) from its first
