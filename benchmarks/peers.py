@@ -4,6 +4,11 @@
 - pyswarms GlobalBestPSO and evosax PSO (20 particles, 100 iterations, same initial range),
   driving jaxarm's fitness: the death penalty (cost = -fitness) and a penalty (cost =
   -fitness + violation, which ranks colliding paths by penetration like feasibility rules);
+- pycma's CMA-ES under its augmented-Lagrangian constraint handling
+  (``cma.ConstrainedFitnessAL`` with ``find_feasible_first=True``: only the violation is
+  minimised until a feasible path is found, then the travelling distance subject to
+  violation <= 0), population 20, 101 generations (the PSO's 20 x (100 + 1) evaluations), started
+  at a uniform draw from the initial range with sigma = a quarter of its width;
 - OMPL RRTConnect with path simplification, in joint space, with a validity checker on the same
   link/obstacle geometry (NumPy, per posture).
 
@@ -163,6 +168,53 @@ def run_evosax(problem, penalty, n_seeds):
                      [m[0] for m in metrics], [m[1] for m in metrics])
 
 
+def run_pycma(problem, n_seeds):
+    import cma
+
+    low, high = problem.bounds()
+    successes, seconds, firsts, lengths, jerks = [], [], [], [], []
+    for seed in range(n_seeds):
+        measured = {}  # ConstrainedFitnessAL asks for f and g one path at a time
+
+        def distance(x):
+            return measured[x.tobytes()][0]
+
+        def violation(x):
+            return [measured[x.tobytes()][1]]
+
+        x0 = np.random.default_rng(seed).uniform(low, high)
+        es = cma.CMAEvolutionStrategy(x0, float(np.mean(high - low)) / 4, {
+            "popsize": N_PARTICLES, "seed": seed + 1, "verbose": -9, "tolfun": 0, "tolx": 0,
+            "tolfunhist": 0, "tolstagnation": 0})
+        objective = cma.ConstrainedFitnessAL(distance, violation, find_feasible_first=True)
+        first, began = None, time.perf_counter()
+        for generation in range(N_ITERS + 1):
+            population = np.asarray(es.ask())
+            evaluation = compiled_evaluate(problem.spec, problem.arrays,
+                                           jnp.asarray(population, jnp.float32))
+            for x, d, v in zip(population, np.asarray(evaluation.distance, np.float64),
+                               np.asarray(evaluation.violation, np.float64)):
+                measured[x.tobytes()] = (d, v)
+            es.tell(population, [objective(x) for x in population])
+            objective.update(es)
+            if first is None and np.any(np.asarray(evaluation.violation) == 0):
+                first = generation
+            if es.stop():
+                break
+        elapsed = time.perf_counter() - began
+        best = objective.best_feas.x
+        ok = best is not None and not bool(jaxarm.collides(problem, best))
+        successes.append(ok)
+        seconds.append(elapsed)
+        if ok:
+            firsts.append(elapsed * (first + 1) / (generation + 1))
+            length, jerk = path_metrics(problem, best)
+            lengths.append(length)
+            jerks.append(jerk)
+    return summarise("pycma CMA-ES, augmented Lagrangian", successes, seconds, firsts, lengths,
+                     jerks)
+
+
 def posture_checker(problem):
     """A fast NumPy check of one posture against the problem's obstacles (open sets)."""
     arrays = problem.arrays
@@ -244,20 +296,26 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=30)
     parser.add_argument("--scenarios", default="paper-case-1,paper-case-2,narrow-gap,death-trap")
+    parser.add_argument("--peers", default=",".join(PEERS),
+                        help=f"comma-separated, from {','.join(PEERS)} (all)")
     args = parser.parse_args()
-    from ompl import util
+    peers = args.peers.split(",")
+    unknown = sorted(set(peers) - set(PEERS))
+    if unknown:
+        parser.error(f"--peers: unknown {unknown}, choose from {list(PEERS)}")
+    if "ompl" in peers:
+        from ompl import util
 
-    util.RNG.setSeed(1)  # before any planner samples
+        util.RNG.setSeed(1)  # before any planner samples
     print(f"jax {jax.__version__} ({jax.default_backend()}), {args.seeds} seeds per method, "
           f"{N_PARTICLES} particles x {N_ITERS} iterations for the PSOs, 1 s budget for OMPL")
     for name in args.scenarios.split(","):
         problem = jaxarm.load_scenario(name)
+        print(f"\n### {name} ({problem.collision} check)\n")
         rows = [run_jaxarm(problem, "death", args.seeds),
-                run_jaxarm(problem, "feasibility", args.seeds),
-                run_pyswarms(problem, False, args.seeds), run_pyswarms(problem, True, args.seeds),
-                run_evosax(problem, False, args.seeds), run_evosax(problem, True, args.seeds),
-                run_ompl(problem, args.seeds)]
-        print(f"\n### {name}\n")
+                run_jaxarm(problem, "feasibility", args.seeds)]
+        for peer in peers:
+            rows += PEERS[peer](problem, args.seeds)
         print("| method | success [95 % CI] | s per run | median s to first feasible | "
               "median joint-space length (rad) | median max jerk (rad / r^3) |")
         print("|---|---|---|---|---|---|")
@@ -265,6 +323,15 @@ def main():
             print(f"| {row['method']} | {row['success']:.0%} [{row['low']:.0%}, "
                   f"{row['high']:.0%}] | {row['seconds']:.4f} | {row['first']:.4f} | "
                   f"{row['length']:.3f} | {row['jerk']:.0f} |")
+
+
+PEERS = {
+    "pyswarms": lambda problem, n: [run_pyswarms(problem, False, n),
+                                    run_pyswarms(problem, True, n)],
+    "evosax": lambda problem, n: [run_evosax(problem, False, n), run_evosax(problem, True, n)],
+    "pycma": lambda problem, n: [run_pycma(problem, n)],
+    "ompl": lambda problem, n: [run_ompl(problem, n)],
+}
 
 
 if __name__ == "__main__":

@@ -11,6 +11,8 @@ TOPOLOGIES = ("global", "ring")
 CONSTRAINTS = ("death", "feasibility", "epsilon", "penalty")  # see jaxarm.constraints
 COLLISION_MODES = ("sampled", "certified")
 PRESET_NAMES = ("A", "B", "C")  # the paper's Table 2
+RING_SUFFIX = "-ring"  # "A-ring": preset A with the ring topology (``pso.resolve``)
+PSO_METHODS = PRESET_NAMES + tuple(name + RING_SUFFIX for name in PRESET_NAMES)
 
 
 def one_of(field: str, value, options: tuple) -> str:

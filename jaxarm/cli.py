@@ -15,7 +15,7 @@ import pathlib
 import sys
 import tempfile
 
-from jaxarm.choices import COLLISION_MODES, CONSTRAINTS, PRESET_NAMES
+from jaxarm.choices import COLLISION_MODES, CONSTRAINTS, PSO_METHODS
 
 EXIT_ERROR = 2
 LIMIT_UNITS = {"velocity": "rad/s", "acceleration": "rad/s^2", "jerk": "rad/s^3",
@@ -125,8 +125,8 @@ def build_parser() -> argparse.ArgumentParser:
     solve = commands.add_parser("solve", help="search one scenario and print the best path",
                                 description="Run PSO restarts on a scenario; print a summary.")
     _add_search_options(solve)
-    solve.add_argument("--method", default="A", choices=PRESET_NAMES,
-                       help="the paper's preset (A)")
+    solve.add_argument("--method", default="A", choices=PSO_METHODS,
+                       help="the paper's preset, or one with the ring topology (A)")
     solve.add_argument("--restarts", type=_positive, default=1, help="independent swarms (1)")
     solve.add_argument("--refine", choices=("best", "all"),
                        help="polish with gradient steps after PSO: the best restart, or every "
@@ -158,7 +158,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_search_options(study)
     study.add_argument("--seeds", type=_positive, default=500, help="seeds per method (500)")
     study.add_argument("--methods", default="A,B,C",
-                       help="comma-separated: A, B, C, METHOD:CONSTRAINT, or an evosax "
+                       help="comma-separated: A, B, C, A-ring (preset A, ring topology), "
+                            "METHOD:CONSTRAINT, or an evosax "
                             "strategy such as evosax:CMA_ES or evosax:DE:feasibility (needs "
                             "evosax) (A,B,C)")
     study.add_argument("--chunk-size", type=_positive, default=500,

@@ -37,6 +37,13 @@ ALIASES = {"DE": "DifferentialEvolution", "GA": "SimpleGA"}
 CONSTRAINTS = ("death", "feasibility")
 
 
+def available() -> bool:
+    """Whether evosax is installed (without importing it)."""
+    import importlib.util
+
+    return importlib.util.find_spec("evosax") is not None
+
+
 def _evosax_algorithms():
     try:
         from evosax import algorithms

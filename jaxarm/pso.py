@@ -45,8 +45,8 @@ import jax
 import jax.numpy as jnp
 
 from jaxarm import constraints
-from jaxarm.choices import (BETA_MODES, PRESET_NAMES, TIE_BREAKS, TOPOLOGIES, VELOCITY_RULES,
-                            one_of)
+from jaxarm.choices import (BETA_MODES, PSO_METHODS, RING_SUFFIX, TIE_BREAKS, TOPOLOGIES,
+                            VELOCITY_RULES, one_of)
 from jaxarm.constraints import Measured
 
 
@@ -151,12 +151,19 @@ PRESETS = {
 
 
 def resolve(method: str | PSOConfig) -> PSOConfig:
-    """A preset name ("A", "B", "C") or a ``PSOConfig``, validated."""
+    """A preset name ("A", "B", "C"), one with the ring topology ("A-ring", ...) or a
+    ``PSOConfig``, validated.
+
+    Example:
+      >>> resolve("B-ring") == PRESETS["B"]._replace(topology="ring")
+      True
+    """
     if isinstance(method, PSOConfig):
         return method.validate()
-    if isinstance(method, str) and method in PRESETS:
-        return PRESETS[method]
-    raise ValueError(f"method must be one of {PRESET_NAMES} or a PSOConfig, got {method!r}")
+    if method in PSO_METHODS:
+        preset = PRESETS[method.removesuffix(RING_SUFFIX)]
+        return preset._replace(topology="ring") if method.endswith(RING_SUFFIX) else preset
+    raise ValueError(f"method must be one of {PSO_METHODS} or a PSOConfig, got {method!r}")
 
 
 class SwarmState(NamedTuple):

@@ -16,12 +16,11 @@ import jax
 import numpy as np
 from matplotlib.figure import Figure
 
-from jaxarm import plot, published, reconstruct, scenarios, study
+from jaxarm import evolution, plot, published, reconstruct, scenarios, study
 from jaxarm._validate import positive_int
 from jaxarm.problem import certify, fitness
 from jaxarm.polish import refine
 from jaxarm.feasible import feasible_fraction
-from jaxarm.pso import PSOConfig
 from jaxarm.search import exact_text, solve
 from jaxarm.trajectory import Trajectory, min_duration
 
@@ -365,25 +364,36 @@ def _suite(report: _Report, problems: list, n_seeds: int, progress) -> None:
     report.figure(figure, "suite_escape_rates.png", "Escape rates on the suite")
 
 
-RULES = ["A", "A:feasibility", "A:epsilon", "A:penalty",
-         study.Variant("A-ring:feasibility", PSOConfig(topology="ring"), "feasibility"),
-         study.Variant("A-ring:epsilon", PSOConfig(topology="ring"), "epsilon")]
+RULES = ["A", "A:feasibility", "A:epsilon", "A:penalty", "A-ring:feasibility", "A-ring:epsilon"]
+EVOSAX_RULES = ["evosax:CMA_ES", "evosax:CMA_ES:feasibility", "evosax:DE", "evosax:DE:feasibility"]
+
+
+def rule_methods() -> tuple[list, str]:
+    """The rules section's methods: ``RULES``, and ``EVOSAX_RULES`` where evosax is installed;
+    and a sentence saying which."""
+    if evolution.available():
+        return RULES + EVOSAX_RULES, (
+            "The evosax rows run CMA-ES and differential evolution (evosax's defaults, "
+            "population 20) in the same compiled restart loop, same seeds and budget.")
+    return RULES, ("evosax is not installed here, so its CMA-ES and differential-evolution "
+                   "rows are left out (`pip install 'jaxarm[bench]'` adds them).")
 
 
 def _rules_section(report: _Report, problems: list, n_seeds: int, progress) -> None:
+    methods, evosax_note = rule_methods()
     report.add(
-        "## Constraint rules compared (preset A)", "",
+        "## Constraint rules compared (preset A, and evosax strategies)", "",
         f"{n_seeds} seeds per row, the paper's sampled check. Rules (`jaxarm.constraints`): the "
         "paper's death penalty, feasibility rules, the epsilon-constrained comparison and an "
         "adaptive penalty; *ring* rows use the lbest ring topology instead of the global best. "
         "Escape rate is CEC 2006's *feasible rate*; fitness medians are over the restarts that "
         "end feasible. The last column compares each row's escape rate with the death "
-        "penalty's (difference, 95 % Newcombe interval, Fisher exact p).", "",
+        f"penalty's (difference, 95 % Newcombe interval, Fisher exact p). {evosax_note}", "",
         "| scenario | rule | escape rate [95 % CI] | median escape iter | median / best fitness "
         "| vs death penalty |", "|---|---|---|---|---|---|",
     )
     for problem in problems:
-        result = study.escape_study(problem, RULES, n_seeds=n_seeds, progress=progress)
+        result = study.escape_study(problem, methods, n_seeds=n_seeds, progress=progress)
         for method in result.methods:
             s = method.summary()
             versus = "–"

@@ -1,11 +1,12 @@
 """The certified continuous check (``jaxarm.certified``, ``jaxarm.certify``) against an independent
 dense oracle (shapely, float64)."""
 
+import jax
 import numpy as np
 import pytest
 
 import jaxarm
-from jaxarm import published
+from jaxarm import certified, published
 from jaxarm.oracle import dense_clearance
 from jaxarm.published import a6_array
 
@@ -94,6 +95,29 @@ def test_certified_verdicts_do_not_depend_on_the_batch(rng):
     together = jaxarm.violation(problem, x)
     alone = np.stack([np.asarray(jaxarm.violation(problem, row)) for row in x[:6]])
     np.testing.assert_array_equal(np.asarray(together)[:6], alone)
+
+
+def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch):
+    """The window pass over the paths without a witness at a sample, in chunks, and the
+    bisection, narrow or wide, give every path the same verdict as one chunk and one loop."""
+    problem = thin_wall_problem(rng)
+    arrays = problem.arrays
+    x = rng.uniform(-10, 10, (300, problem.n_free)).astype(np.float32)
+
+    def check():
+        return jax.jit(lambda x: certified.check(
+            arrays.lengths, arrays.world, arrays.start, arrays.goal, x, problem.degree,
+            problem.n_samples, arrays.certify_tol, arrays.margin, problem.certify_budget))(x)
+
+    one_chunk_narrow = check()  # 300 paths < WINDOW_CHUNK, fewer than FEW_PATHS to bisect
+    monkeypatch.setattr(certified, "WINDOW_CHUNK", 16)
+    monkeypatch.setattr(certified, "_wide_lanes", lambda: 128)  # as on an accelerator
+    monkeypatch.setattr(certified, "FEW_PATHS", -1)  # always the wide loop
+    chunked_wide = check()
+    assert np.sum(~np.asarray(one_chunk_narrow.colliding)) > 3 * 16  # several chunks ran
+    assert np.sum(np.asarray(one_chunk_narrow.free)) > 10
+    for a, b in zip(one_chunk_narrow, chunked_wide):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
 def test_margin_keeps_the_arm_away(case2):

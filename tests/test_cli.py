@@ -211,6 +211,6 @@ def test_the_cli_offers_the_librarys_choices_without_importing_jax():
     assert done.stdout.strip() == "ok", done.stderr
     commands = cli.build_parser()._subparsers._group_actions[0].choices
     options = {a.dest: a.choices for a in commands["solve"]._actions if a.choices}
-    assert options["method"] == choices.PRESET_NAMES
+    assert options["method"] == choices.PSO_METHODS
     assert options["constraint"] == choices.CONSTRAINTS
     assert options["collision"] == choices.COLLISION_MODES

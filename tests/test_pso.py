@@ -156,8 +156,19 @@ def test_bad_configs_name_the_field():
         pso.resolve(pso.PSOConfig("constriction", 1.0, 2.0))
     with pytest.raises(ValueError, match=r"cognitive_coeff must be a finite number >= 0"):
         pso.resolve(pso.PSOConfig(cognitive_coeff=float("nan")))
-    with pytest.raises(ValueError, match=r"method must be one of \('A', 'B', 'C'\)"):
-        pso.resolve("D")
+    for name in ("D", "D-ring", "A-star", "a"):
+        with pytest.raises(ValueError, match=r"method must be one of \('A', 'B', 'C', 'A-ring'"):
+            pso.resolve(name)
+
+
+def test_ring_names_are_the_presets_with_the_ring_topology():
+    from jaxarm.study import parse_variants
+
+    for name in choices.PRESET_NAMES:
+        assert pso.resolve(name + "-ring") == pso.PRESETS[name]._replace(topology="ring")
+        assert pso.resolve(name).topology == "global"
+    variant, = parse_variants(["A-ring:epsilon"], "death")
+    assert variant == ("A-ring:epsilon", pso.PRESETS["A"]._replace(topology="ring"), "epsilon")
 
 
 def test_presets_and_choices_agree():

@@ -44,3 +44,15 @@ def test_stage_lines_are_numbered_and_timed():
     assert lines[1].startswith("[2/2, ") and lines[1].endswith(" s] second")
     with pytest.raises(StopIteration):  # more stages than announced is a bug, not a line
         stage("third")
+
+
+def test_the_rules_section_adds_evosax_rows_only_where_it_is_installed(monkeypatch):
+    from jaxarm import evolution
+
+    monkeypatch.setattr(evolution, "available", lambda: False)
+    methods, note = reproduce.rule_methods()
+    assert methods == reproduce.RULES and "pip install 'jaxarm[bench]'" in note
+    monkeypatch.setattr(evolution, "available", lambda: True)
+    methods, note = reproduce.rule_methods()
+    assert methods == reproduce.RULES + reproduce.EVOSAX_RULES and "CMA-ES" in note
+    assert all(evolution.is_strategy(m) for m in reproduce.EVOSAX_RULES)
