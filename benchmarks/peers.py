@@ -169,6 +169,9 @@ def run_evosax(problem, penalty, n_seeds):
 
 
 def run_pycma(problem, n_seeds):
+    import warnings
+
+    warnings.filterwarnings("ignore", message=".*moarchiving")  # optional archive, unused here
     import cma
 
     low, high = problem.bounds()

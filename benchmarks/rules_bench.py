@@ -16,11 +16,11 @@ import argparse
 import jax
 
 import jaxarm
-from jaxarm.reproduce import RULES
+from jaxarm.reproduce import rule_methods
 
 
 def rules_table(problem, n_seeds: int) -> list[str]:
-    result = jaxarm.escape_study(problem, RULES, n_seeds=n_seeds, progress=False)
+    result = jaxarm.escape_study(problem, rule_methods()[0], n_seeds=n_seeds, progress=False)
     lines = []
     for method in result.methods:
         s, outcome = method.summary(), method.outcome
