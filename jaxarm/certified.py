@@ -7,8 +7,7 @@ Three stages, all batched over paths.
    nothing more is done for it.
 
 1. **Windows**, for the paths without a witness only (compacted, ``WINDOW_CHUNK`` at a time;
-   random paths mostly have a witness, near-optimal ones mostly do not). Around every sample
-   r_s lies the
+   most random paths have a witness). Around every sample r_s lies the
    window ``|r - r_s| <= h / 2`` (h the sample spacing); the windows cover [0, 1]. A point p of
    link k is ``sum_{i<k} l_i u(phi_i) + t l_k u(phi_k)`` with ``phi_i = theta_1 + ... +
    theta_i``; its velocity is ``sum_{j<=k} theta_j'(r) J (p - q_{j-1})`` (q_{j-1} joint j-1's
