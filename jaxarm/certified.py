@@ -107,6 +107,18 @@ class _WindowPass(NamedTuple):
     failing: tuple  # n_words arrays of shape (B,), uint32: bit s of word s // 32 = window s
 
 
+def _no_windows(batch: tuple, dtype, n_samples: int) -> _WindowPass:
+    """The window pass before any sample: nothing failing, nothing near."""
+    return _WindowPass(
+        pending=jnp.full(batch, -jnp.inf, dtype),
+        pending_nearest=jnp.full(batch, jnp.inf, dtype),
+        worst_passed=jnp.full(batch, -jnp.inf, dtype),
+        nearest=jnp.full(batch, jnp.inf, dtype),
+        closest=jnp.zeros(batch, jnp.int32),
+        failing=tuple(jnp.zeros(batch, jnp.uint32) for _ in range(-(-n_samples // 32))),
+    )
+
+
 def _window_pass(lengths, world, start, goal, x, degree, n_samples, margin) -> path.SampleFold:
     """Stage 1 as a fold over the samples; ``finish`` returns the last ``_WindowPass``."""
     step = 1.0 / (n_samples - 1)
@@ -135,16 +147,7 @@ def _window_pass(lengths, world, start, goal, x, degree, n_samples, margin) -> p
                                                             step / 2, margin)
         return carry._replace(pending=shortfall, pending_nearest=nearest)
 
-    batch = x.shape[:-1]
-    empty = _WindowPass(
-        pending=jnp.full(batch, -jnp.inf, x.dtype),
-        pending_nearest=jnp.full(batch, jnp.inf, x.dtype),
-        worst_passed=jnp.full(batch, -jnp.inf, x.dtype),
-        nearest=jnp.full(batch, jnp.inf, x.dtype),
-        closest=jnp.zeros(batch, jnp.int32),
-        failing=tuple(jnp.zeros(batch, jnp.uint32) for _ in range(-(-n_samples // 32))),
-    )
-    return path.SampleFold(init=empty, step=add_sample,
+    return path.SampleFold(init=_no_windows(x.shape[:-1], x.dtype, n_samples), step=add_sample,
                            finish=lambda carry: record(carry, jnp.int32(n_samples - 1)),
                            max_order=1)
 
@@ -190,11 +193,6 @@ def _compacted_window_pass(lengths, world, start, goal, x, open_rows, n_open, de
     n_rows = x.shape[0]
     chunk = min(WINDOW_CHUNK, n_rows)
     padded = jnp.concatenate([open_rows, jnp.zeros(-n_rows % chunk, jnp.int32)])
-    empty = _WindowPass(
-        pending=jnp.zeros(n_rows, x.dtype), pending_nearest=jnp.zeros(n_rows, x.dtype),
-        worst_passed=jnp.full(n_rows, -jnp.inf, x.dtype),
-        nearest=jnp.full(n_rows, jnp.inf, x.dtype), closest=jnp.zeros(n_rows, jnp.int32),
-        failing=tuple(jnp.zeros(n_rows, jnp.uint32) for _ in range(-(-n_samples // 32))))
 
     def pass_chunk(state):
         first, out = state
@@ -208,7 +206,7 @@ def _compacted_window_pass(lengths, world, start, goal, x, open_rows, n_open, de
         return first + chunk, out
 
     _, out = jax.lax.while_loop(lambda state: state[0] < n_open, pass_chunk,
-                                (jnp.int32(0), empty))
+                                (jnp.int32(0), _no_windows((n_rows,), x.dtype, n_samples)))
     return out
 
 
