@@ -4,9 +4,11 @@ For paper-case-1 and death-trap, in each collision mode: escape rate (CEC 2006's
 rate) with its 95 % interval, the share that ends feasible, the median and best final fitness of
 the feasible restarts, and each row against the death penalty (Newcombe interval, Fisher p).
 Then every shipped scenario's feasible share of the init range, with the iteration-0 escape it
-predicts for 20 particles beside the one measured.
+predicts for 20 particles beside the one measured (the initial swarms of ``--start-seeds``
+seeds, with the Wilson interval of that share).
 
     .venv/bin/python benchmarks/rules_bench.py [--seeds 300] [--modes sampled,certified]
+        [--parts rules,share] [--draws 100000] [--start-seeds 3000]
 """
 
 from __future__ import annotations
@@ -14,9 +16,11 @@ from __future__ import annotations
 import argparse
 
 import jax
+import numpy as np
 
 import jaxarm
 from jaxarm.reproduce import rule_methods
+from jaxarm.stats import wilson_interval
 
 
 def rules_table(problem, n_seeds: int) -> list[str]:
@@ -41,29 +45,52 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=300)
     parser.add_argument("--modes", default="sampled,certified")
+    parser.add_argument("--parts", default="rules,share",
+                        help="comma-separated: rules (the rules table), share (feasible shares)")
+    parser.add_argument("--draws", type=int, default=100_000,
+                        help="uniform paths per feasible share")
+    parser.add_argument("--start-seeds", type=int, default=3000,
+                        help="initial swarms per measured iteration-0 escape")
     args = parser.parse_args()
-    modes = args.modes.split(",")
-    print(f"jax {jax.__version__} ({jax.default_backend()}), {args.seeds} seeds, preset A, "
-          "20 particles, 100 iterations\n")
+    modes, parts = args.modes.split(","), args.parts.split(",")
+    print(f"jax {jax.__version__} ({jax.default_backend()}), preset A, 20 particles\n")
+    if "rules" in parts:
+        rules_part(modes, args.seeds)
+    if "share" in parts:
+        share_part(modes, args.draws, args.start_seeds)
+
+
+def rules_part(modes: list[str], n_seeds: int) -> None:
+    print(f"{n_seeds} seeds, 100 iterations\n")
     print("| scenario | check | rule | escape rate [95 % CI] | ends feasible | "
           "median / best fitness (feasible) | vs death penalty | time (s) |")
     print("|---|---|---|---|---|---|---|---|")
     for mode in modes:
         for name in ("paper-case-1", "death-trap"):
-            for line in rules_table(jaxarm.load_scenario(name, collision=mode), args.seeds):
+            for line in rules_table(jaxarm.load_scenario(name, collision=mode), n_seeds):
                 print(line, flush=True)
-    print("\n| scenario | check | free share [95 % CI] | start escape: predicted / measured |")
-    print("|---|---|---|---|")
+
+
+def share_part(modes: list[str], n_draws: int, n_seeds: int) -> None:
+    print(f"\nfeasible share from {n_draws} uniform paths; iteration-0 escape of {n_seeds} "
+          "initial swarms\n")
+    print("| scenario | check | free share [95 % CI] | start escape: predicted [95 % CI] | "
+          "measured [95 % CI] | intervals overlap |")
+    print("|---|---|---|---|---|---|")
     for mode in modes:
         for name in jaxarm.available_scenarios():
             problem = jaxarm.load_scenario(name, collision=mode)
-            share = jaxarm.feasible_fraction(problem, n_samples=10_000)
-            measured = jaxarm.escape_study(problem, ["A"], n_seeds=args.seeds, n_iters=1,
-                                           progress=False)["A"].start_escape_rate()
+            share = jaxarm.feasible_fraction(problem, n_samples=n_draws)
+            start = jaxarm.escape_study(problem, ["A"], n_seeds=n_seeds, n_iters=1,
+                                        progress=False)["A"]
+            hits = int(np.sum(start.outcome.escape_iter == 0))
+            seen_low, seen_high = wilson_interval(hits, n_seeds)
             predicted, (low, high) = share.start_escape(20)
-            print(f"| {name} | {mode} | {share.fraction:.2%} [{share.interval[0]:.2%}, "
-                  f"{share.interval[1]:.2%}] | {predicted:.1%} [{low:.1%}, {high:.1%}] / "
-                  f"{measured:.1%} |", flush=True)
+            overlap = "yes" if low <= seen_high and seen_low <= high else "no"
+            print(f"| {name} | {mode} | {share.fraction:.3%} [{share.interval[0]:.3%}, "
+                  f"{share.interval[1]:.3%}] | {predicted:.1%} [{low:.1%}, {high:.1%}] | "
+                  f"{hits / n_seeds:.1%} [{seen_low:.1%}, {seen_high:.1%}] | {overlap} |",
+                  flush=True)
 
 
 if __name__ == "__main__":
