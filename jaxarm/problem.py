@@ -470,17 +470,18 @@ class Certificate(NamedTuple):
     exhausted: jax.Array  # bool: neither, because the check's budget ran out
 
 
+SMALL_BATCH = 64  # ``certify`` pads batches of fewer paths to this many (one program for all)
+
+
 @functools.partial(jax.jit, static_argnums=0)
-def _certify(spec, arrays, x):
-    rows = x.reshape((math.prod(x.shape[:-1]), x.shape[-1]))  # -1 fails on empty batches
+def _certify(spec, arrays, rows):
     check = certify_rows(spec, arrays, rows)
     free, colliding = check.free, check.colliding
     if spec.with_limits:
         limits = limit_rows(spec, arrays, rows)
         colliding = colliding | limits.witness
         free = free & (limits.excess == 0)
-    return Certificate(*(a.reshape(x.shape[:-1]) for a in (
-        free, colliding, check.clearance, check.exhausted & ~colliding)))
+    return Certificate(free, colliding, check.clearance, check.exhausted & ~colliding)
 
 
 def certify(problem: Problem, x) -> Certificate:
@@ -492,6 +493,9 @@ def certify(problem: Problem, x) -> Certificate:
     between (within the tolerance of the margin), or when the budget runs out, neither.
     With ``problem.joint_limits``, ``free`` also needs every joint proved inside its range and
     an angle found outside makes the path ``colliding`` (``clearance`` stays the obstacles').
+    A batch of fewer than ``SMALL_BATCH`` paths is padded to that many (copies of its first
+    path), so all small batches share one compiled program; no path's verdict depends on the
+    others in its batch.
 
     Args:
       problem: the problem.
@@ -506,5 +510,11 @@ def certify(problem: Problem, x) -> Certificate:
       >>> bool(certificate.free), bool(certificate.colliding)
       (True, False)
     """
-    return _certify(problem.spec._replace(collision="certified"), problem.arrays,
-                    _as_params(problem, x))
+    x = _as_params(problem, x)
+    rows = x.reshape((math.prod(x.shape[:-1]), x.shape[-1]))
+    n_rows = rows.shape[0]
+    if 0 < n_rows < SMALL_BATCH:  # one program for every small batch; rows are independent
+        rows = jnp.concatenate([rows, jnp.broadcast_to(rows[:1], (SMALL_BATCH - n_rows,
+                                                                  rows.shape[1]))])
+    certificate = _certify(problem.spec._replace(collision="certified"), problem.arrays, rows)
+    return Certificate(*(a[:n_rows].reshape(x.shape[:-1]) for a in certificate))

@@ -60,6 +60,7 @@ class PSOParams(NamedTuple):
     social_coeff: jax.Array  # shape=(), phi2
     init_velocity: jax.Array  # shape=(), initial speed as a fraction of the init range
     velocity_clamp: jax.Array  # shape=(), clamp as a fraction of the init range (inf: none)
+    ring: jax.Array  # shape=(), bool: the ring topology (lbest) instead of the global best
 
 
 class SwarmRules(NamedTuple):
@@ -67,7 +68,6 @@ class SwarmRules(NamedTuple):
 
     tie_break: str  # "first" or "random"
     beta: str  # "dimension" or "particle"
-    topology: str = "global"  # "global" (gbest) or "ring" (lbest)
 
 
 class PSOConfig(NamedTuple):
@@ -131,12 +131,14 @@ class PSOConfig(NamedTuple):
             social_coeff=self.social_coeff,
             init_velocity=self.init_velocity,
             velocity_clamp=math.inf if self.velocity_clamp is None else self.velocity_clamp,
+            ring=self.topology == "ring",
         )
-        return PSOParams(*(jnp.asarray(v, dtype=jnp.result_type(float)) for v in values))
+        return PSOParams(*(jnp.asarray(v, dtype=jnp.bool_ if isinstance(v, bool)
+                                       else jnp.result_type(float)) for v in values))
 
     def rules(self) -> SwarmRules:
         """The static part."""
-        return SwarmRules(tie_break=self.tie_break, beta=self.beta, topology=self.topology)
+        return SwarmRules(tie_break=self.tie_break, beta=self.beta)
 
 
 # The paper's Table 2 presets.
@@ -204,7 +206,8 @@ class Swarm(NamedTuple):
 
 
 def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high, *,
-          n_particles: int, n_iters: int, init_particles=None, constraint="death") -> Swarm:
+          n_particles: int, n_iters: int, init_particles=None, n_given=None,
+          constraint="death") -> Swarm:
     """PSO over the box [low, high] as an ``(init, step)`` pair (paper eqs. 13-16).
 
     Args:
@@ -213,8 +216,10 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
       low, high: the initial range, shape (n_dims,).
       n_particles: swarm size (static).
       n_iters: total number of updates, for the inertia and epsilon schedules (static).
-      init_particles: optional given particles, shape (n_given, n_dims), n_given <=
-        n_particles; they replace the first random ones (paper Table 6).
+      init_particles: optional given particles, shape (k, n_dims), k <= n_particles; the first
+        ``n_given`` of them (default: all k) replace the first random ones (paper Table 6).
+      n_given: how many rows of ``init_particles`` to use (may be traced, so that one program
+        serves any number of given particles).
       constraint: a name from ``CONSTRAINTS`` or its index (may be traced).
 
     Returns:
@@ -241,8 +246,10 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
         position = low + span * jax.random.uniform(position_key, (n_particles, low.shape[-1]),
                                                    dtype=low.dtype)
         if init_particles is not None:
-            position = position.at[: init_particles.shape[0]].set(
+            count = init_particles.shape[0] if n_given is None else n_given
+            given = jnp.zeros_like(position).at[: init_particles.shape[0]].set(
                 init_particles.astype(low.dtype))
+            position = jnp.where(jnp.arange(n_particles)[:, None] < count, given, position)
         velocity = params.init_velocity * span * jax.random.uniform(
             velocity_key, position.shape, dtype=low.dtype, minval=-1.0, maxval=1.0
         )
@@ -271,7 +278,7 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
         iteration = state.iteration + 1
         omega = (params.inertia_start
                  + (params.inertia_end - params.inertia_start) * iteration / n_iters)
-        social = _social_attractor(state, rules.topology)
+        social = _social_attractor(state, params.ring)
         velocity = params.constriction * (
             omega * state.velocity
             + params.cognitive_coeff * beta1 * (state.best_position - state.position)
@@ -307,19 +314,19 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
     return Swarm(init=init, step=step)
 
 
-def _social_attractor(state: SwarmState, topology: str) -> jax.Array:
-    """What each particle's social term pulls towards, shape (n_particles, n_dims) or (n_dims,).
+def _social_attractor(state: SwarmState, ring) -> jax.Array:
+    """What each particle's social term pulls towards, shape (n_particles, n_dims).
 
-    ``"global"``: the global best. ``"ring"``: the best personal best among the particle and
-    its two ring neighbours (first index on ties: i - 1, then i, then i + 1).
+    ``ring`` false (global): the global best. True: the best personal best among the particle
+    and its two ring neighbours (first index on ties: i - 1, then i, then i + 1). The topology
+    is data (a traced bool), so both share one compiled program.
     """
-    if topology == "global":
-        return state.best_position[state.global_index]
     n = state.best_score.shape[0]
     particles = jnp.arange(n)
     neighbours = jnp.stack([(particles - 1) % n, particles, (particles + 1) % n], axis=1)
     choice = jnp.argmax(state.best_score[neighbours], axis=1)
-    return state.best_position[neighbours[particles, choice]]
+    neighbourhood = jnp.where(ring, neighbours[particles, choice], state.global_index)
+    return state.best_position[neighbourhood]
 
 
 def _choose_global(key, best_score, tie_break: str):

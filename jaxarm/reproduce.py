@@ -7,6 +7,7 @@ output folder. Everything is seeded: the same command gives the same numbers.
 from __future__ import annotations
 
 import datetime
+import math
 import pathlib
 import platform
 import time
@@ -77,6 +78,7 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
     out.mkdir(parents=True, exist_ok=True)
     report = _Report(out)
     stage = _stages(log, began, total=5)
+    chunk = _shared_chunk(n_seeds, suite_seeds)
     # The paper's tables use the paper's check: collision-free at the 101 samples of r.
     case1, case2, case3 = (scenarios.load_scenario(f"paper-case-{i}", collision="sampled")
                            for i in (1, 2, 3))
@@ -97,7 +99,8 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
 
     stage(f"case 1: escape study, {n_seeds} seeds x 6 methods")
     methods = ["A", "B", "C", "A:feasibility", "B:feasibility", "C:feasibility"]
-    case1_study = study.escape_study(case1, methods, n_seeds=n_seeds, progress=progress)
+    case1_study = study.escape_study(case1, methods, n_seeds=n_seeds, chunk_size=chunk,
+                                     progress=progress)
     (out / "case1_study.json").write_text(case1_study.to_json())
     (out / "case1_study.csv").write_text(case1_study.to_csv())
     _table_2(report, case1_study)
@@ -111,11 +114,11 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
     report.add(*beyond_paper_section((case1, case2, case3), 20 if quick else 100, degrees))
     stage(f"constraint rules compared on case 1 and death-trap, {n_seeds} seeds each")
     _rules_section(report, [case1, scenarios.load_scenario("death-trap", collision="sampled")],
-                   n_seeds, progress)
+                   n_seeds, chunk, progress)
     _feasible_set_section(report, case2)
     _trajectory_section(report, case2)
     stage(f"shipped suite: {len(suite)} scenarios x {suite_seeds} seeds x 2 methods")
-    _suite(report, suite, suite_seeds, progress)
+    _suite(report, suite, suite_seeds, chunk, progress)
     report.add(f"Total time: {time.perf_counter() - began:.0f} s.")
     path = report.write()
     log(f"report written to {path} ({time.perf_counter() - began:.0f} s)")
@@ -321,7 +324,16 @@ def _suite_problems(names) -> list:
     return [scenarios.load_scenario(name, collision="sampled") for name in names]
 
 
-def _suite(report: _Report, problems: list, n_seeds: int, progress) -> None:
+def _shared_chunk(n_seeds: int, suite_seeds: int) -> int:
+    """Seeds per compiled call in every study of the report: the greatest common divisor of the
+    two study sizes when it is at least 20 (50 quick, 100 in full), so that the case-1 and
+    death-trap studies reuse the suite's programs (results do not depend on it); else
+    ``escape_study``'s default."""
+    common = math.gcd(n_seeds, suite_seeds)
+    return common if common >= 20 else 500
+
+
+def _suite(report: _Report, problems: list, n_seeds: int, chunk: int, progress) -> None:
     report.add(
         f"## The shipped suite: escape rates over {n_seeds} seeds (preset A)", "",
         "*Free share*: the share of the init range whose paths are collision-free "
@@ -335,7 +347,7 @@ def _suite(report: _Report, problems: list, n_seeds: int, progress) -> None:
     rates = []
     for problem in problems:
         result = study.escape_study(problem, ["A", "A:feasibility"], n_seeds=n_seeds,
-                                    progress=progress)
+                                    chunk_size=chunk, progress=progress)
         cells = []
         for method in result.methods:
             low, high = method.escape_interval()
@@ -379,7 +391,8 @@ def rule_methods() -> tuple[list, str]:
                    "rows are left out (`pip install 'jaxarm[bench]'` adds them).")
 
 
-def _rules_section(report: _Report, problems: list, n_seeds: int, progress) -> None:
+def _rules_section(report: _Report, problems: list, n_seeds: int, chunk: int,
+                   progress) -> None:
     methods, evosax_note = rule_methods()
     report.add(
         "## Constraint rules compared (preset A, and evosax strategies)", "",
@@ -393,7 +406,8 @@ def _rules_section(report: _Report, problems: list, n_seeds: int, progress) -> N
         "| vs death penalty |", "|---|---|---|---|---|---|",
     )
     for problem in problems:
-        result = study.escape_study(problem, methods, n_seeds=n_seeds, progress=progress)
+        result = study.escape_study(problem, methods, n_seeds=n_seeds, chunk_size=chunk,
+                                    progress=progress)
         for method in result.methods:
             s = method.summary()
             versus = "–"

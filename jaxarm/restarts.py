@@ -81,7 +81,7 @@ def run_restart(key, swarm: pso.Swarm, n_iters: int) -> tuple[jax.Array, ...]:
 
 def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOParams,
                     rules: pso.SwarmRules, low, high, seed, restart_ids, init_particles,
-                    constraint, *, n_particles: int, n_iters: int) -> RestartOutcome:
+                    n_given, constraint, *, n_particles: int, n_iters: int) -> RestartOutcome:
     """Run the PSO restarts numbered ``restart_ids`` (pure; ``compiled_search`` is its jit).
 
     Args:
@@ -91,7 +91,9 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
       low, high: init range, shape (n_free,).
       seed: int32 scalar.
       restart_ids: int32, shape (n_restarts,); restart i uses ``fold_in(key(seed), i)``.
-      init_particles: None or shape (n_given, n_free).
+      init_particles: shape (n_particles, n_free); its first ``n_given`` rows replace the
+        first random particles (data: one program for any number of given particles).
+      n_given: int32 scalar.
       constraint: int32 scalar, ``constraints.constraint_index`` of the rule (data: every
         rule shares one program).
 
@@ -110,7 +112,8 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
                                          constraint=constraint)
     else:
         swarm = pso.swarm(params, rules, measure, low, high, n_particles=n_particles,
-                          n_iters=n_iters, init_particles=init_particles, constraint=constraint)
+                          n_iters=n_iters, init_particles=init_particles, n_given=n_given,
+                          constraint=constraint)
 
     def one(restart):
         key = jax.random.fold_in(jax.random.key(seed), restart)
@@ -165,17 +168,15 @@ def padded_count(n_restarts: int) -> int:
 _RUN_PROGRAMS: set = set()
 
 
-def _program_key(problem, config, n_particles, n_iters, n_restarts, init_particles) -> tuple:
-    given = None if init_particles is None else np.shape(init_particles)
-    return (problem.spec, config.rules(), n_particles, n_iters, padded_count(n_restarts), given)
+def _program_key(problem, config, n_particles, n_iters, n_restarts) -> tuple:
+    return (problem.spec, config.rules(), n_particles, n_iters, padded_count(n_restarts))
 
 
 def is_compiled(problem: Problem, config: pso.PSOConfig, n_particles: int, n_iters: int,
-                n_restarts: int, init_particles=None) -> bool:
+                n_restarts: int) -> bool:
     """Whether ``run_restarts`` with these sizes has run in this process (else its next call
     compiles, or loads the program from the persistent compilation cache)."""
-    return _program_key(problem, config, n_particles, n_iters, n_restarts,
-                        init_particles) in _RUN_PROGRAMS
+    return _program_key(problem, config, n_particles, n_iters, n_restarts) in _RUN_PROGRAMS
 
 
 def to_host(array: jax.Array) -> np.ndarray:
@@ -192,11 +193,15 @@ def run_restarts(problem: Problem, config: pso.PSOConfig, constraint: str, n_par
                  init_particles=None) -> RestartOutcome:
     """The compiled search for restarts ``first_restart ..``, as NumPy arrays."""
     low, high = (jnp.asarray(b, dtype=jnp.result_type(float)) for b in problem.bounds())
+    given, n_given = np.zeros((n_particles, problem.n_free)), 0
+    if init_particles is not None:
+        n_given = len(init_particles)
+        given[:n_given] = init_particles
     outcome = compiled_search(
         problem.spec, problem.arrays, config.params(), config.rules(), low, high,
-        jnp.int32(seed), restart_ids(first_restart, n_restarts), init_particles,
-        jnp.int32(constraint_index(constraint)), n_particles=n_particles, n_iters=n_iters,
+        jnp.int32(seed), restart_ids(first_restart, n_restarts), jnp.asarray(given, low.dtype),
+        jnp.int32(n_given), jnp.int32(constraint_index(constraint)), n_particles=n_particles,
+        n_iters=n_iters,
     )
-    _RUN_PROGRAMS.add(_program_key(problem, config, n_particles, n_iters, n_restarts,
-                                   init_particles))
+    _RUN_PROGRAMS.add(_program_key(problem, config, n_particles, n_iters, n_restarts))
     return RestartOutcome(*(to_host(a)[:n_restarts] for a in outcome))

@@ -8,6 +8,7 @@ import pytest
 import jaxarm
 from jaxarm import certified, published
 from jaxarm.oracle import dense_clearance
+from jaxarm.problem import SMALL_BATCH, _certify
 from jaxarm.published import a6_array
 
 from oracles import oracle_path_collides, thin_wall_problem
@@ -95,6 +96,21 @@ def test_certified_verdicts_do_not_depend_on_the_batch(rng):
     together = jaxarm.violation(problem, x)
     alone = np.stack([np.asarray(jaxarm.violation(problem, row)) for row in x[:6]])
     np.testing.assert_array_equal(np.asarray(together)[:6], alone)
+
+
+def test_small_certify_batches_share_one_program_and_agree_with_a_large_one(rng):
+    problem = thin_wall_problem(rng)
+    x = rng.uniform(-60, 60, (SMALL_BATCH + 6, problem.n_free)).astype(np.float32)
+    large = jaxarm.certify(problem, x)
+    jaxarm.certify(problem, x[:1])
+    programs = _certify._cache_size()
+    for size in (1, 5, SMALL_BATCH):
+        small = jaxarm.certify(problem, x[:size])
+        for name, field in small._asdict().items():
+            assert field.shape == (size,)
+            np.testing.assert_array_equal(field, getattr(large, name)[:size], err_msg=name)
+    assert _certify._cache_size() == programs
+    assert jaxarm.certify(problem, x[:0]).free.shape == (0,)
 
 
 def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch):

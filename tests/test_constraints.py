@@ -89,10 +89,10 @@ def test_ring_topology_follows_the_best_of_each_particles_neighbours():
         best=MEASURED, best_score=jnp.array([5.0, 1.0, 2.0, 0.0, 3.0]),
         global_index=jnp.int32(0), iteration=jnp.int32(0), escape_iter=jnp.int32(0),
         rule=constraints.initial_state(MEASURED))
-    attractor = np.asarray(pso._social_attractor(state, "ring"))[:, 0]
+    attractor = np.asarray(pso._social_attractor(state, True))[:, 0]
     # neighbours (i-1, i, i+1) mod 5 -> the index of the best score among them
     np.testing.assert_array_equal(attractor, [0, 0, 2, 4, 0])
-    np.testing.assert_array_equal(np.asarray(pso._social_attractor(state, "global")), [0, 0])
+    np.testing.assert_array_equal(np.asarray(pso._social_attractor(state, False)), 0)
 
 
 @pytest.mark.parametrize("rule", ["epsilon", "penalty"])

@@ -178,8 +178,7 @@ def test_presets_and_choices_agree():
         assert config.velocity_rule in choices.VELOCITY_RULES
     params = pso.PRESETS["C"].params()
     assert float(params.constriction) == pytest.approx(pso.PRESETS["C"].constriction)
-    assert pso.PRESETS["A"].rules() == pso.SwarmRules(tie_break="first", beta="dimension",
-                                                      topology="global")
+    assert pso.PRESETS["A"].rules() == pso.SwarmRules(tie_break="first", beta="dimension")
     with pytest.raises(ValueError, match=r"constraint must be one of \('death', 'feasibility', "
                                          r"'epsilon', 'penalty'\), got 'soft'"):
         constraints.constraint_index("soft")

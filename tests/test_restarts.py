@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import jaxarm
-from jaxarm import pso, restarts
+from jaxarm import constraints, pso, restarts
 from jaxarm.restarts import compiled_search
 
 SMALL = dict(n_particles=8, n_iters=12)
@@ -39,7 +39,8 @@ def test_jit_equals_no_jit_on_one_restart(case2):
     config = pso.PRESETS["C"]
     args = (case2.spec, case2.arrays, config.params(), config.rules(),
             *(jnp.asarray(b, jnp.float32) for b in case2.bounds()), jnp.int32(0),
-            jnp.zeros(1, jnp.int32), None, jnp.int32(pso.constraint_index("feasibility")))
+            jnp.zeros(1, jnp.int32), jnp.zeros((4, case2.n_free), jnp.float32), jnp.int32(0),
+            jnp.int32(constraints.constraint_index("feasibility")))
     sizes = dict(n_particles=4, n_iters=2)
     jitted = compiled_search(*args, **sizes)
     with jax.disable_jit():
@@ -54,7 +55,10 @@ def test_a_second_problem_with_the_same_sizes_does_not_recompile(case2, case3):
     jaxarm.solve(case3, "B", n_restarts=2, seed=5, **SMALL)  # new data, new preset, new seed
     jaxarm.solve(case2.replace(start=[5.7, 1.2, 0.7]), "C", n_restarts=2, **SMALL)
     jaxarm.solve(case2, "A", n_restarts=2, constraint="feasibility", **SMALL)  # rule is data
-    assert compiled_search._cache_size() == before
+    jaxarm.solve(case2, "A-ring", n_restarts=2, **SMALL)  # so is the topology
+    given = jaxarm.solve(case2, "A", n_restarts=2, init_particles=[[66.7, -28.1, -9.9]], **SMALL)
+    assert compiled_search._cache_size() == before  # and the number of given particles
+    assert given.restarts.best_fitness.min() > 0  # the given free path is a personal best
 
 
 SHARDED_SCRIPT = """
