@@ -1,7 +1,8 @@
-"""How many programs the quick report compiles: the search's and refine's jit caches afterwards.
+"""How many programs the quick report compiles: the search's, certify's and refine's jit caches.
 
 Runs ``reproduce_paper(quick=True)`` in this process (into a scratch folder, no persistent
-cache) and prints the number of compiled ``search`` and ``refine`` programs and the wall time.
+cache) and prints the number of compiled ``search``, ``certify`` and ``refine`` programs and the
+wall time.
 
     JAXARM_CACHE_DIR=off .venv/bin/python benchmarks/compile_count.py
 """
@@ -11,7 +12,7 @@ from __future__ import annotations
 import tempfile
 import time
 
-from jaxarm import polish
+from jaxarm import polish, problem
 from jaxarm.reproduce import reproduce_paper
 from jaxarm.restarts import compiled_search
 
@@ -20,7 +21,8 @@ def main():
     began = time.perf_counter()
     with tempfile.TemporaryDirectory() as out:
         reproduce_paper(out, quick=True)
-    print(f"search programs {compiled_search._cache_size()}, refine programs "
+    print(f"search programs {compiled_search._cache_size()}, certify programs "
+          f"{problem._certify._cache_size()}, refine programs "
           f"{polish._compiled_refine._cache_size()}, {time.perf_counter() - began:.0f} s")
 
 
