@@ -10,6 +10,9 @@ BETA_MODES = ("dimension", "particle")
 TOPOLOGIES = ("global", "ring")
 CONSTRAINTS = ("death", "feasibility", "epsilon", "penalty")  # see jaxarm.constraints
 COLLISION_MODES = ("sampled", "certified")
+# ``trajectory.min_duration``'s limits (keywords ``max_<name>``, CLI ``--max-<name>``), with units
+LIMIT_UNITS = {"velocity": "rad/s", "acceleration": "rad/s^2", "jerk": "rad/s^3",
+               "torque": "N m"}
 PRESET_NAMES = ("A", "B", "C")  # the paper's Table 2
 RING_SUFFIX = "-ring"  # "A-ring": preset A with the ring topology (``pso.resolve``)
 PSO_METHODS = PRESET_NAMES + tuple(name + RING_SUFFIX for name in PRESET_NAMES)

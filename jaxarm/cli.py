@@ -15,11 +15,9 @@ import pathlib
 import sys
 import tempfile
 
-from jaxarm.choices import COLLISION_MODES, CONSTRAINTS, PSO_METHODS
+from jaxarm.choices import COLLISION_MODES, CONSTRAINTS, LIMIT_UNITS, PSO_METHODS
 
 EXIT_ERROR = 2
-LIMIT_UNITS = {"velocity": "rad/s", "acceleration": "rad/s^2", "jerk": "rad/s^3",
-               "torque": "N m"}
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 
 

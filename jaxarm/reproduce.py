@@ -19,6 +19,7 @@ from matplotlib.figure import Figure
 
 from jaxarm import evolution, plot, published, reconstruct, scenarios, study
 from jaxarm._validate import positive_int
+from jaxarm.choices import LIMIT_UNITS
 from jaxarm.problem import certify, fitness
 from jaxarm.polish import refine
 from jaxarm.feasible import feasible_fraction
@@ -454,8 +455,6 @@ def _feasible_set_section(report: _Report, case2) -> None:
 # Limits for case II's trajectory: a modest arm, per joint where the loads differ.
 TRAJECTORY_LIMITS = {"max_velocity": 1.0, "max_acceleration": 2.0, "max_jerk": 10.0,
                      "max_torque": (40.0, 20.0, 5.0)}
-LIMIT_UNITS = {"max_velocity": "rad/s", "max_acceleration": "rad/s²", "max_jerk": "rad/s³",
-               "max_torque": "N·m"}
 
 
 def _trajectory_section(report: _Report, case2) -> None:
@@ -463,16 +462,17 @@ def _trajectory_section(report: _Report, case2) -> None:
     rows = []
     for name, limit in TRAJECTORY_LIMITS.items():
         duration = min_duration(case2, optimum, **{name: limit})
-        rows.append(f"| {name} = {limit} {LIMIT_UNITS[name]} | {duration:.4f} |")
+        rows.append(f"| {name} = {limit} {LIMIT_UNITS[name.removeprefix('max_')]} | "
+                    f"{duration:.4f} |")
     duration = min_duration(case2, optimum, **TRAJECTORY_LIMITS)
     trajectory = Trajectory(case2, optimum, duration)
     ends = trajectory.torques([0.0, duration])
     report.add(
         "## Case II's optimum in seconds (eqs. 8-9)", "",
         "The paper gives the links' masses (3, 3 and 2 kg) but not the plane the arm moves in; "
-        "here it is vertical (gravity 9.81 m/s² along -y) and the links are uniform rods. "
-        f"Holding the start posture takes {_vector(ends[0], 2)} N·m, the goal "
-        f"{_vector(ends[1], 2)} N·m. The shortest transfer time of the paper's optimum "
+        "here it is vertical (gravity 9.81 m/s^2 along -y) and the links are uniform rods. "
+        f"Holding the start posture takes {_vector(ends[0], 2)} N m, the goal "
+        f"{_vector(ends[1], 2)} N m. The shortest transfer time of the paper's optimum "
         f"{exact_text(optimum)} under each limit alone (`jaxarm.min_duration`), and under all "
         "of them:", "",
         "| limit | shortest T (s) |", "|---|---|", *rows,

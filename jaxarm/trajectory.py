@@ -281,10 +281,15 @@ def check_static_load(problem: Problem, max_torque) -> np.ndarray:
     for which, load in zip(("start", "goal"), static):
         joint = int(np.argmax(load - limit))
         if load[joint] >= limit[joint]:
-            raise ValueError(f"max_torque[{joint}] = {limit[joint]:g} N m is at or below joint "
-                             f"{joint + 1}'s static gravity load {load[joint]:.4g} N m at the "
-                             f"{which} posture: no duration can meet it")
+            raise _overload(limit, joint, load[joint], f"the {which} posture")
     return limit
+
+
+def _overload(limit: np.ndarray, joint: int, load: float, where: str) -> ValueError:
+    """The error for a torque limit that the static gravity load alone reaches at ``where``."""
+    return ValueError(f"max_torque[{joint}] = {limit[joint]:g} N m is at or below joint "
+                      f"{joint + 1}'s static gravity load {load:.4g} N m at {where}: no "
+                      "duration can meet it")
 
 
 def _torque_duration(trajectory: Trajectory, limit: np.ndarray) -> float:
@@ -301,10 +306,7 @@ def _torque_duration(trajectory: Trajectory, limit: np.ndarray) -> float:
         heavy = np.abs(static) >= limit
         if heavy.any():
             index, joint = np.argwhere(heavy)[0]
-            raise ValueError(
-                f"max_torque[{joint}] = {limit[joint]:g} N m is at or below joint {joint + 1}'s "
-                f"static gravity load {abs(static[index, joint]):.4g} N m at r = "
-                f"{r[index]:.4g}: no duration can meet it")
+            raise _overload(limit, joint, abs(static[index, joint]), f"r = {r[index]:.4g}")
         with np.errstate(divide="ignore"):
             allowed = (limit - np.sign(inertial) * static) / np.abs(inertial)
         return allowed.min(axis=1)
