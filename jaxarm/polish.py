@@ -24,7 +24,7 @@ import optax
 
 from jaxarm import collision as collision_lib
 from jaxarm import path
-from jaxarm.problem import Problem, _as_params, vmapped_evaluate
+from jaxarm.problem import Problem, _as_params, on_padded_rows, vmapped_evaluate
 
 
 class RefineResult(NamedTuple):
@@ -120,17 +120,15 @@ def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weig
     """
     x = _as_params(problem, x)
     leading = x.shape[:-1]
-    batch = x.reshape(-1, problem.n_free)
-    if batch.shape[0] == 0:  # nothing to polish (e.g. no feasible restart): no kernel call
+    if x.size == 0:  # nothing to polish (e.g. no feasible restart): no kernel call
         zeros = np.zeros(leading, np.asarray(x).dtype)
         return RefineResult(np.asarray(x), zeros, zeros, np.zeros(leading, np.int32),
                             np.zeros(leading + (int(n_steps) + 1,), zeros.dtype))
     optimizer = optimizer or DEFAULT_OPTIMIZER
-    # The batch padded (with copies of its last row) to a power of two >= 16: a few compiled
-    # programs per problem shape, whatever the batch size, in one vectorised call.
-    n_rows = batch.shape[0]
-    n_padded = max(REFINE_BLOCK, 1 << (n_rows - 1).bit_length())
-    padded = jnp.concatenate([batch, jnp.repeat(batch[-1:], n_padded - n_rows, axis=0)])
-    out = _compiled_refine(problem.spec, problem.arrays, padded, optimizer, int(n_steps),
-                           barrier_weight, margin, temperature)
-    return RefineResult(*(np.asarray(a)[:n_rows].reshape(leading + a.shape[1:]) for a in out))
+    # Padded to a few batch sizes (>= 16 rows): a few compiled programs per problem shape,
+    # whatever the batch size, in one vectorised call.
+    out = on_padded_rows(
+        lambda rows: _compiled_refine(problem.spec, problem.arrays, rows, optimizer,
+                                      int(n_steps), barrier_weight, margin, temperature),
+        x, smallest=REFINE_BLOCK)
+    return RefineResult(*(np.asarray(a) for a in out))

@@ -31,6 +31,21 @@ from jaxarm.world import World, WorldArrays
 from jaxarm.choices import COLLISION_MODES, one_of
 
 
+@functools.partial(jax.jit, static_argnums=0)
+def _posture_depth(lengths: tuple, world: WorldArrays, theta):
+    """Penetration of every link into every slot at one posture (n_joints,) -> (n_joints, n_slots).
+
+    Compiled: a Problem checks its start and goal on construction, and op by op that took
+    about 0.1 s per problem."""
+    return collision_lib.penetration(lengths, world, theta)
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _posture_separation(lengths: tuple, world: WorldArrays, theta):
+    """Exact separation (cm) of every link from every slot at one posture, (n_joints, n_slots)."""
+    return jnp.stack([world_lib.separation_xy(*link, world)
+                      for link in link_endpoints(lengths, list(theta))])
+
 
 class ProblemSpec(NamedTuple):
     """The static part of a problem: everything a compiled program is specialised on."""
@@ -159,7 +174,7 @@ class Problem:
 
     def _check_posture(self, which: str) -> None:
         theta = jnp.asarray(getattr(self, which))
-        depth = np.asarray(collision_lib.penetration(self.arm.lengths, self.arrays.world, theta))
+        depth = np.asarray(_posture_depth(self.arm.lengths, self.arrays.world, theta))
         if np.any(depth > 0):
             link, slot = np.unravel_index(int(np.argmax(depth > 0)), depth.shape)
             name = self.world.slot_names(self.capacities)[slot]
@@ -168,9 +183,8 @@ class Problem:
                 f"overlaps {name} by {depth[link, slot]:.4g} cm"
             )
         if self.margin > 0:
-            separation = np.stack([
-                np.asarray(world_lib.separation_xy(*link, self.arrays.world))
-                for link in link_endpoints(self.arm.lengths, list(theta))])
+            separation = np.asarray(
+                _posture_separation(self.arm.lengths, self.arrays.world, theta))
             if np.any(separation < self.margin):
                 link, slot = np.unravel_index(int(np.argmin(separation)), separation.shape)
                 name = self.world.slot_names(self.capacities)[slot]
@@ -369,6 +383,44 @@ def vmapped_evaluate(spec: ProblemSpec):
 
 _evaluate = jax.jit(evaluate, static_argnums=0)
 
+SMALL_BATCH = 64  # the smallest padded batch of ``fitness``, ``violation`` and ``certify``
+LARGE_BLOCK = 4096  # batches above this are padded to a multiple of it
+
+
+def padded_size(n_rows: int, smallest: int = SMALL_BATCH) -> int:
+    """The batch size that ``n_rows`` paths are padded to before a compiled call: a power of
+    two >= ``smallest`` up to ``LARGE_BLOCK``, above it a multiple of ``LARGE_BLOCK``; 0 stays 0.
+
+    An empty batch is run as ``smallest`` paths (and all cut away). A handful of compiled
+    programs then serve every batch size, for under twice the work.
+    """
+    if n_rows > LARGE_BLOCK:
+        return -(-n_rows // LARGE_BLOCK) * LARGE_BLOCK
+    return max(smallest, 1 << (max(n_rows, 1) - 1).bit_length())
+
+
+def on_padded_rows(kernel, x, smallest: int = SMALL_BATCH):
+    """``kernel(rows)`` for x's paths as rows (B, n_free), padded with copies of the first path
+    to ``padded_size(B, smallest)`` rows; each field of the result, shape (B_padded, ...), cut
+    back to x's leading shape (..., ...).
+
+    Rows are independent (no path's result depends on the others in its batch). A traced x
+    (inside the caller's own jit or vmap) is not padded: its program is compiled once anyway.
+    """
+    rows = x.reshape((math.prod(x.shape[:-1]), x.shape[-1]))  # -1 fails on empty batches
+    n_rows = rows.shape[0]
+    if not isinstance(x, jax.core.Tracer):
+        extra = padded_size(n_rows, smallest) - n_rows
+        first = rows[:1] if n_rows else jnp.zeros((1, rows.shape[1]), rows.dtype)
+        rows = jnp.concatenate([rows, jnp.broadcast_to(first, (extra, rows.shape[1]))])
+    return jax.tree.map(lambda a: a[:n_rows].reshape(x.shape[:-1] + a.shape[1:]), kernel(rows))
+
+
+def _evaluated(problem: Problem, x) -> Evaluation:
+    """``evaluate`` of x (..., n_free) in one of a few compiled programs per problem spec."""
+    return on_padded_rows(functools.partial(_evaluate, problem.spec, problem.arrays),
+                          _as_params(problem, x))
+
 
 def _as_params(problem: Problem, x) -> jax.Array:
     if not isinstance(problem, Problem):
@@ -401,7 +453,7 @@ def fitness(problem: Problem, x) -> jax.Array:
       >>> float(jaxarm.fitness(problem, [66.7388, -28.1028, -9.8855]))  # doctest: +ELLIPSIS
       0.1946...
     """
-    return _evaluate(problem.spec, problem.arrays, _as_params(problem, x)).fitness
+    return _evaluated(problem, x).fitness
 
 
 def violation(problem: Problem, x) -> jax.Array:
@@ -414,7 +466,7 @@ def violation(problem: Problem, x) -> jax.Array:
     Returns:
       Array of shape (...,), >= 0 and exactly 0 iff the path is collision-free.
     """
-    return _evaluate(problem.spec, problem.arrays, _as_params(problem, x)).violation
+    return _evaluated(problem, x).violation
 
 
 def collides(problem: Problem, x) -> jax.Array:
@@ -424,7 +476,7 @@ def collides(problem: Problem, x) -> jax.Array:
 
 def travelling_distance(problem: Problem, x) -> jax.Array:
     """Joint angle travelling distance summed over joints (paper eq. 5, Simpson); shape (...,)."""
-    return _evaluate(problem.spec, problem.arrays, _as_params(problem, x)).distance
+    return _evaluated(problem, x).distance
 
 
 def joint_path(problem: Problem, x, r, order: int = 0) -> jax.Array:
@@ -470,9 +522,6 @@ class Certificate(NamedTuple):
     exhausted: jax.Array  # bool: neither, because the check's budget ran out
 
 
-SMALL_BATCH = 64  # ``certify`` pads batches of fewer paths to this many (one program for all)
-
-
 @functools.partial(jax.jit, static_argnums=0)
 def _certify(spec, arrays, rows):
     check = certify_rows(spec, arrays, rows)
@@ -493,9 +542,9 @@ def certify(problem: Problem, x) -> Certificate:
     between (within the tolerance of the margin), or when the budget runs out, neither.
     With ``problem.joint_limits``, ``free`` also needs every joint proved inside its range and
     an angle found outside makes the path ``colliding`` (``clearance`` stays the obstacles').
-    A batch of fewer than ``SMALL_BATCH`` paths is padded to that many (copies of its first
-    path), so all small batches share one compiled program; no path's verdict depends on the
-    others in its batch.
+    The batch is padded to ``padded_size`` paths (copies of its first path), so a few
+    compiled programs serve every batch size; no path's verdict depends on the others in its
+    batch.
 
     Args:
       problem: the problem.
@@ -510,11 +559,6 @@ def certify(problem: Problem, x) -> Certificate:
       >>> bool(certificate.free), bool(certificate.colliding)
       (True, False)
     """
-    x = _as_params(problem, x)
-    rows = x.reshape((math.prod(x.shape[:-1]), x.shape[-1]))
-    n_rows = rows.shape[0]
-    if 0 < n_rows < SMALL_BATCH:  # one program for every small batch; rows are independent
-        rows = jnp.concatenate([rows, jnp.broadcast_to(rows[:1], (SMALL_BATCH - n_rows,
-                                                                  rows.shape[1]))])
-    certificate = _certify(problem.spec._replace(collision="certified"), problem.arrays, rows)
-    return Certificate(*(a[:n_rows].reshape(x.shape[:-1]) for a in certificate))
+    spec = problem.spec._replace(collision="certified")
+    return on_padded_rows(functools.partial(_certify, spec, problem.arrays),
+                          _as_params(problem, x))

@@ -173,10 +173,11 @@ def test_certified_is_the_default_and_sampled_results_say_so():
     assert jaxarm.load_scenario("paper-case-1").collision == "certified"
     case2 = jaxarm.load_scenario("paper-case-2")
     assert case2.collision == "certified"
-    sampled = jaxarm.solve(case2.replace(collision="sampled"), "A", n_restarts=2, n_iters=30,
-                           constraint="feasibility")
+    sampled = jaxarm.solve(case2.replace(collision="sampled"), "A", n_restarts=2, n_particles=8,
+                           n_iters=12, constraint="feasibility")
     if sampled.feasible and not sampled.certified:
         assert "not certified" in sampled.summary()
-    certified = jaxarm.solve(case2, "A", n_restarts=2, n_iters=30, constraint="feasibility")
+    certified = jaxarm.solve(case2, "A", n_restarts=2, n_particles=8, n_iters=12,
+                             constraint="feasibility")
     assert certified.feasible == certified.certified
     assert bool(jaxarm.certify(case2, certified.best_x).free) == certified.feasible

@@ -65,16 +65,15 @@ def test_refine_of_no_paths_is_empty(case2):
 
 
 def test_refine_shares_programs_and_rows_do_not_depend_on_their_neighbours(
-        feasible_case2_paths):
+        feasible_case2_paths, case2):
     from jaxarm import polish
 
     rows = np.asarray(feasible_case2_paths)
-    few = jaxarm.refine(jaxarm.load_scenario("paper-case-2"), rows[:3], n_steps=5)
+    few = jaxarm.refine(case2, rows[:3], n_steps=5)
     before = polish._compiled_refine._cache_size()
-    many = jaxarm.refine(jaxarm.load_scenario("paper-case-2"),
-                         np.concatenate([rows[:3], rows[:3], rows[:3] + 1.0]), n_steps=5)
+    many = jaxarm.refine(case2, np.concatenate([rows[:3], rows[:3], rows[:3] + 1.0]), n_steps=5)
     assert polish._compiled_refine._cache_size() == before  # 3 and 9 rows: the same program
     np.testing.assert_array_equal(many.x[:3], few.x)
     np.testing.assert_array_equal(many.fitness[3:6], few.fitness)
-    wide = jaxarm.refine(jaxarm.load_scenario("paper-case-2"), rows[:40], n_steps=5)  # 64 rows
+    wide = jaxarm.refine(case2, rows[:40], n_steps=5)  # 64 rows
     np.testing.assert_array_equal(wide.x[:3], few.x)

@@ -62,6 +62,23 @@ def test_batched_equals_looped_for_any_leading_shape(case2, rng):
     np.testing.assert_allclose(batched, looped, rtol=1e-5, atol=1e-6)
 
 
+def test_batches_are_padded_to_a_few_sizes_and_rows_do_not_depend_on_them(case2, rng):
+    from jaxarm.problem import LARGE_BLOCK, SMALL_BATCH, _evaluate, padded_size
+
+    assert [padded_size(n) for n in (0, 1, 64, 65, 4096, 4097)] == [64, 64, 64, 128, 4096, 8192]
+    assert padded_size(3, smallest=16) == 16 and padded_size(3 * LARGE_BLOCK + 1) == 4 * 4096
+    x = rng.uniform(-200, 200, (SMALL_BATCH + 6, 3)).astype(np.float32)
+    large = [np.asarray(f(case2, x)) for f in (jaxarm.fitness, jaxarm.violation)]
+    jaxarm.fitness(case2, x[:1])
+    programs = _evaluate._cache_size()
+    for size in (1, 5, SMALL_BATCH):
+        for f, whole in zip((jaxarm.fitness, jaxarm.violation), large):
+            np.testing.assert_array_equal(np.asarray(f(case2, x[:size])), whole[:size])
+    assert np.asarray(jaxarm.travelling_distance(case2, x[:2].reshape(2, 1, 3))).shape == (2, 1)
+    assert jaxarm.fitness(case2, x[:0]).shape == (0,)  # run as 64 zero paths, cut away
+    assert _evaluate._cache_size() == programs
+
+
 @pytest.mark.parametrize("mode", ["sampled", "certified"])
 def test_jit_equals_no_jit(case2, rng, mode):
     # Eager loops run step by step in Python: few samples, a small bisection budget.
@@ -75,16 +92,12 @@ def test_jit_equals_no_jit(case2, rng, mode):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
 
 
-_jitted_evaluate = jax.jit(jaxarm.problem.evaluate, static_argnums=0)
-
-
 @given(st.lists(st.floats(-200, 200), min_size=3, max_size=3))
 def test_float32_agrees_with_float64(x):
     problem = jaxarm.load_scenario("paper-case-2")
-    low = np.asarray(_jitted_evaluate(problem.spec, problem.arrays, jnp.asarray(x, jnp.float32)))
+    low = np.asarray(jaxarm.problem._evaluated(problem, jnp.asarray(x, jnp.float32)))
     with jax.enable_x64(True):
-        high = np.asarray(_jitted_evaluate(problem.spec, problem.arrays,
-                                           jnp.asarray(x, jnp.float64)))
+        high = np.asarray(jaxarm.problem._evaluated(problem, jnp.asarray(x, jnp.float64)))
     np.testing.assert_allclose(low[2], high[2], rtol=1e-5)  # distance
     # Collision verdicts can only differ within rounding of the boundary.
     if (low[1] > 0) != (high[1] > 0):
@@ -92,14 +105,13 @@ def test_float32_agrees_with_float64(x):
 
 
 def test_new_obstacle_data_does_not_recompile(case2):
-    evaluate = jax.jit(jaxarm.problem.evaluate, static_argnums=0)
     moved = case2.replace(world=jaxarm.World(circles=[(-40.0, -40.0, 5.0)]))
     assert moved.spec == case2.spec
     x = jnp.zeros((4, 3))
-    evaluate(case2.spec, case2.arrays, x)
-    before = evaluate._cache_size()
-    evaluate(moved.spec, moved.arrays, x)
-    assert evaluate._cache_size() == before
+    jaxarm.fitness(case2, x)
+    before = jaxarm.problem._evaluate._cache_size()
+    jaxarm.fitness(moved, x)
+    assert jaxarm.problem._evaluate._cache_size() == before
 
 
 ARM = jaxarm.Arm((30.0, 30.0, 20.0))
@@ -164,6 +176,8 @@ def test_an_empty_batch_gives_empty_answers(case2, mode):
     for function in (jaxarm.fitness, jaxarm.violation, jaxarm.travelling_distance):
         assert np.asarray(function(problem, empty)).shape == (0,)
     assert np.asarray(jaxarm.certify(problem, empty).free).shape == (0,)
+    # inside a caller's jit an empty batch is not padded: the kernels take it as it is
+    assert jax.jit(lambda x: jaxarm.violation(problem, x))(empty).shape == (0,)
 
 
 def test_joint_path_checks_the_order_and_the_times(case2):
