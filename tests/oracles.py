@@ -72,9 +72,23 @@ def oracle_path_collides(problem, x, n_samples):
     not from the kernels under test.
     """
     segments = link_segments(problem, np.asarray(x), n_samples)  # (paths, samples, links, 2, 2)
-    _, hit = oracle_separation(problem.world, segments[..., 0, :].reshape(-1, 2),
-                               segments[..., 1, :].reshape(-1, 2))
+    start, end = segments[..., 0, :].reshape(-1, 2), segments[..., 1, :].reshape(-1, 2)
+    # Only segments whose bounding box meets some obstacle's can meet its interior: shapely
+    # checks those (building every segment as a shapely object was most of the time).
+    low, high = np.minimum(start, end), np.maximum(start, end)
+    near = np.zeros(len(start), dtype=bool)
+    for box in obstacle_bounds(problem.world):
+        near |= np.all(high >= box[:2], axis=-1) & np.all(low <= box[2:], axis=-1)
+    hit = np.zeros(len(start), dtype=bool)
+    hit[near] = oracle_separation(problem.world, start[near], end[near])[1]
     return hit.reshape(len(x), -1).any(axis=-1)
+
+
+def obstacle_bounds(world: jaxarm.World) -> np.ndarray:
+    """(min x, min y, max x, max y) of every obstacle, from shapely; shape (n_obstacles, 4)."""
+    circles, polygons = shapely_obstacles(world)
+    bounds = [(c.x - r, c.y - r, c.x + r, c.y + r) for c, r in circles]
+    return np.array(bounds + [shapely.bounds(p) for p in polygons]).reshape(-1, 4)
 
 
 def thin_wall_problem(rng):
