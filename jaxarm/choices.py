@@ -7,15 +7,17 @@ these tuples; ``jaxarm.cli`` builds its ``choices=`` from them.
 VELOCITY_RULES = ("original", "inertia", "constriction")
 TIE_BREAKS = ("first", "random")
 BETA_MODES = ("dimension", "particle")
-TOPOLOGIES = ("global", "ring")
+TOPOLOGIES = ("global", "ring", "global-ring")  # see jaxarm.pso
 CONSTRAINTS = ("death", "feasibility", "epsilon", "penalty")  # see jaxarm.constraints
 COLLISION_MODES = ("sampled", "certified")
 # ``trajectory.min_duration``'s limits (keywords ``max_<name>``, CLI ``--max-<name>``), with units
 LIMIT_UNITS = {"velocity": "rad/s", "acceleration": "rad/s^2", "jerk": "rad/s^3",
                "torque": "N m"}
 PRESET_NAMES = ("A", "B", "C")  # the paper's Table 2
-RING_SUFFIX = "-ring"  # "A-ring": preset A with the ring topology (``pso.resolve``)
-PSO_METHODS = PRESET_NAMES + tuple(name + RING_SUFFIX for name in PRESET_NAMES)
+# "A-ring": preset A with the ring topology; "A-global-ring": with "global-ring" (``pso.resolve``)
+TOPOLOGY_SUFFIXES = {"-ring": "ring", "-global-ring": "global-ring"}
+PSO_METHODS = PRESET_NAMES + tuple(name + suffix for suffix in TOPOLOGY_SUFFIXES
+                                   for name in PRESET_NAMES)
 
 
 def one_of(field: str, value, options: tuple) -> str:

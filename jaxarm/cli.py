@@ -124,7 +124,8 @@ def build_parser() -> argparse.ArgumentParser:
                                 description="Run PSO restarts on a scenario; print a summary.")
     _add_search_options(solve)
     solve.add_argument("--method", default="A", choices=PSO_METHODS,
-                       help="the paper's preset, or one with the ring topology (A)")
+                       help="the paper's preset, or one with the ring (A-ring) or "
+                            "global-then-ring (A-global-ring) topology (A)")
     solve.add_argument("--restarts", type=_positive, default=1, help="independent swarms (1)")
     solve.add_argument("--refine", choices=("best", "all"),
                        help="polish with gradient steps after PSO: the best restart, or every "
@@ -157,6 +158,8 @@ def build_parser() -> argparse.ArgumentParser:
     study.add_argument("--seeds", type=_positive, default=500, help="seeds per method (500)")
     study.add_argument("--methods", default="A,B,C",
                        help="comma-separated: A, B, C, A-ring (preset A, ring topology), "
+                            "A-global-ring (the global best for 5 % of the iterations, then the "
+                            "ring), "
                             "METHOD:CONSTRAINT, or an evosax "
                             "strategy such as evosax:CMA_ES or evosax:DE:feasibility (needs "
                             "evosax) (A,B,C)")

@@ -377,7 +377,8 @@ def _suite(report: _Report, problems: list, n_seeds: int, chunk: int, progress) 
     report.figure(figure, "suite_escape_rates.png", "Escape rates on the suite")
 
 
-RULES = ["A", "A:feasibility", "A:epsilon", "A:penalty", "A-ring:feasibility", "A-ring:epsilon"]
+RULES = ["A", "A:feasibility", "A:epsilon", "A:penalty", "A-ring:feasibility", "A-ring:epsilon",
+         "A-global-ring:epsilon"]
 EVOSAX_RULES = ["evosax:CMA_ES", "evosax:CMA_ES:feasibility", "evosax:DE", "evosax:DE:feasibility"]
 
 
@@ -399,7 +400,8 @@ def _rules_section(report: _Report, problems: list, n_seeds: int, chunk: int,
         "## Constraint rules compared (preset A, and evosax strategies)", "",
         f"{n_seeds} seeds per row, the paper's sampled check. Rules (`jaxarm.constraints`): the "
         "paper's death penalty, feasibility rules, the epsilon-constrained comparison and an "
-        "adaptive penalty; *ring* rows use the lbest ring topology instead of the global best. "
+        "adaptive penalty; *ring* rows use the lbest ring topology instead of the global best, "
+        "*global-ring* the global best for the first 5 % of the iterations and the ring after. "
         "Escape rate is CEC 2006's *feasible rate*; fitness medians are over the restarts that "
         "end feasible. The last column compares each row's escape rate with the death "
         f"penalty's (difference, 95 % Newcombe interval, Fisher exact p). {evosax_note}", "",

@@ -166,9 +166,28 @@ def test_ring_names_are_the_presets_with_the_ring_topology():
 
     for name in choices.PRESET_NAMES:
         assert pso.resolve(name + "-ring") == pso.PRESETS[name]._replace(topology="ring")
+        assert (pso.resolve(name + "-global-ring")
+                == pso.PRESETS[name]._replace(topology="global-ring"))
         assert pso.resolve(name).topology == "global"
     variant, = parse_variants(["A-ring:epsilon"], "death")
     assert variant == ("A-ring:epsilon", pso.PRESETS["A"]._replace(topology="ring"), "epsilon")
+    variant, = parse_variants(["B-global-ring:epsilon"], "death")
+    assert variant.config == pso.PRESETS["B"]._replace(topology="global-ring")
+
+
+def test_global_ring_follows_the_global_best_then_the_ring():
+    """With 40 iterations, 5 % is 2: updates 1 and 2 as "global", every later one as "ring"."""
+    global_, ring, both = (make_swarm(pso.PRESETS["A"]._replace(topology=t), sphere,
+                                      n_particles=6, n_iters=40)
+                           for t in ("global", "ring", "global-ring"))
+    state, _ = both.init(jax.random.key(3))
+    for t in range(1, 6):
+        key = jax.random.key(100 + t)
+        expected, _ = (global_ if t <= 2 else ring).step(key, state)
+        other, _ = (ring if t <= 2 else global_).step(key, state)
+        state, _ = both.step(key, state)
+        np.testing.assert_array_equal(state.position, expected.position)
+        assert not np.array_equal(state.position, other.position)  # the two really differ
 
 
 def test_presets_and_choices_agree():
@@ -182,5 +201,6 @@ def test_presets_and_choices_agree():
     with pytest.raises(ValueError, match=r"constraint must be one of \('death', 'feasibility', "
                                          r"'epsilon', 'penalty'\), got 'soft'"):
         constraints.constraint_index("soft")
-    with pytest.raises(ValueError, match=r"topology must be one of \('global', 'ring'\)"):
+    with pytest.raises(ValueError,
+                       match=r"topology must be one of \('global', 'ring', 'global-ring'\)"):
         pso.resolve(pso.PSOConfig(topology="star"))
