@@ -158,7 +158,7 @@ def build_parser() -> argparse.ArgumentParser:
     study.add_argument("--seeds", type=_positive, default=500, help="seeds per method (500)")
     study.add_argument("--methods", default="A,B,C",
                        help="comma-separated: A, B, C, A-ring (preset A, ring topology), "
-                            "A-global-ring (the global best for 5 % of the iterations, then the "
+                            "A-global-ring (the global best for 5 %% of the iterations, then the "
                             "ring), "
                             "METHOD:CONSTRAINT, or an evosax "
                             "strategy such as evosax:CMA_ES or evosax:DE:feasibility (needs "
