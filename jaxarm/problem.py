@@ -389,9 +389,9 @@ LARGE_BLOCK = 4096  # batches above this are padded to a multiple of it
 
 def padded_size(n_rows: int, smallest: int = SMALL_BATCH) -> int:
     """The batch size that ``n_rows`` paths are padded to before a compiled call: a power of
-    two >= ``smallest`` up to ``LARGE_BLOCK``, above it a multiple of ``LARGE_BLOCK``; 0 stays 0.
+    two >= ``smallest`` up to ``LARGE_BLOCK``, above it a multiple of ``LARGE_BLOCK``.
 
-    An empty batch is run as ``smallest`` paths (and all cut away). A handful of compiled
+    An empty batch is run as ``smallest`` paths (all cut away again). A handful of compiled
     programs then serve every batch size, for under twice the work.
     """
     if n_rows > LARGE_BLOCK:
@@ -401,8 +401,8 @@ def padded_size(n_rows: int, smallest: int = SMALL_BATCH) -> int:
 
 def on_padded_rows(kernel, x, smallest: int = SMALL_BATCH):
     """``kernel(rows)`` for x's paths as rows (B, n_free), padded with copies of the first path
-    to ``padded_size(B, smallest)`` rows; each field of the result, shape (B_padded, ...), cut
-    back to x's leading shape (..., ...).
+    to ``padded_size(B, smallest)`` rows; each field of the result, shape (B_padded, *rest),
+    cut back to shape x.shape[:-1] + rest.
 
     Rows are independent (no path's result depends on the others in its batch). A traced x
     (inside the caller's own jit or vmap) is not padded: its program is compiled once anyway.
