@@ -159,10 +159,8 @@ def build_parser() -> argparse.ArgumentParser:
     study.add_argument("--methods", default="A,B,C",
                        help="comma-separated: A, B, C, A-ring (preset A, ring topology), "
                             "A-global-ring (the global best for 5 %% of the iterations, then the "
-                            "ring), "
-                            "METHOD:CONSTRAINT, or an evosax "
-                            "strategy such as evosax:CMA_ES or evosax:DE:feasibility (needs "
-                            "evosax) (A,B,C)")
+                            "ring), METHOD:CONSTRAINT, or an evosax strategy such as "
+                            "evosax:CMA_ES or evosax:DE:feasibility (needs evosax) (A,B,C)")
     study.add_argument("--chunk-size", type=_positive, default=500,
                        help="at most this many restarts per compiled call; bounds memory and "
                             "sets how often the progress bar moves, results do not depend on "
