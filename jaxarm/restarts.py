@@ -20,8 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm import evolution, pso
-from jaxarm.constraints import Measured, constraint_index
+from jaxarm import constraints, evolution, pso
+from jaxarm.constraints import constraint_index
 from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, vmapped_evaluate
 
 
@@ -104,8 +104,8 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
 
     def measure(x):
         evaluation = evaluate(arrays, x)
-        return Measured(objective=1.0 / evaluation.distance, fitness=evaluation.fitness,
-                        violation=evaluation.violation)
+        return constraints.path_measures(evaluation.fitness, evaluation.violation,
+                                         evaluation.distance)
 
     if isinstance(rules, evolution.StrategyConfig):  # "evosax:<Strategy>"
         swarm = evolution.strategy_swarm(rules, measure, low, high, n_particles=n_particles,

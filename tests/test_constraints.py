@@ -108,3 +108,23 @@ def test_new_rules_and_the_ring_run_everywhere_and_repeat_bit_for_bit(case2, rul
     # the reported fitness is the paper's whatever the rule: 1 / distance of free paths
     fitness = jaxarm.fitness(case2, plain.restarts.best_x)
     np.testing.assert_allclose(plain.restarts.best_fitness, fitness, rtol=1e-6)
+
+
+def test_rules_compare_colliding_paths_by_depth_times_distance(case2):
+    # Two colliding paths of case 2: a shallow and long one, a deep and short one whose depth
+    # times distance is the smaller. A swarm that cannot move (no pull, no initial speed) keeps
+    # as global best the particle the rule ranks first.
+    x = np.random.default_rng(0).uniform(-300.0, 300.0, (256, case2.n_free)).astype(np.float32)
+    depth = np.asarray(jaxarm.violation(case2, x))
+    length = np.asarray(jaxarm.travelling_distance(case2, x))
+    colliding = np.flatnonzero(depth > 0)
+    deep_short = colliding[np.argmin((depth * length)[colliding])]
+    shallower = colliding[depth[colliding] < depth[deep_short]]
+    shallow_long = shallower[np.argmax(length[shallower])]
+    assert depth[shallow_long] * length[shallow_long] > depth[deep_short] * length[deep_short]
+    still = jaxarm.PSOConfig(cognitive_coeff=0.0, social_coeff=0.0)
+    particles = np.stack([x[shallow_long]] + [x[deep_short]] * 7)
+    result = jaxarm.solve(case2, still, n_particles=8, n_iters=12, n_restarts=5, seed=3,
+                          constraint="feasibility", init_particles=particles)
+    np.testing.assert_array_equal(result.restarts.best_x,
+                                  np.broadcast_to(x[deep_short], result.restarts.best_x.shape))
