@@ -58,12 +58,15 @@ def main():
     print(f"first one: depth {own:.4f} cm, distance "
           f"{float(jaxarm.travelling_distance(problem, trapped)):.2f}; joint 1 at r = 0, 0.1, "
           f"..., 1: {np.round(theta[:, 0], 2).tolist()}")
+    own_weighted = own * float(jaxarm.travelling_distance(problem, trapped))
     rng = np.random.default_rng(0)
     for scale in (1, 5, 20, 50):
         probes = trapped + scale * rng.standard_normal((2000, problem.n_free))
         violation = np.asarray(jaxarm.violation(problem, probes))
+        weighted = violation * np.asarray(jaxarm.travelling_distance(problem, probes))
         print(f"  2,000 probes at sd {scale}: lowest depth {violation.min():.4f} cm, "
-              f"{(violation == 0).mean():.1%} free")
+              f"{(violation == 0).mean():.1%} free; depth x distance lower than the trap's "
+              f"({own_weighted:.2f}) in {(weighted < own_weighted).mean():.1%}")
     free = shipped.restarts.best_x[shipped.best_restart]
     t = np.linspace(0.0, 1.0, 41)[:, None]
     line = (1 - t) * trapped + t * free

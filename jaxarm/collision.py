@@ -10,8 +10,9 @@ obstacles at a sample, the largest such sum over the samples (cm: the deepest pe
 found); zero exactly when no sample collides. The deepest penetration rather than its sum over
 the samples: the sum rewards paths that swing fast through an obstacle (fewer samples inside),
 and under feasibility rules it drew more swarms into such traps (paper-case-1, preset A, 500
-seeds of ``jaxarm reproduce-paper``: 79.6 % escape with the deepest penetration, 60.4 % with
-the sum; ``benchmarks/RESULTS.md``).
+seeds of ``jaxarm reproduce-paper``, each compared alone: 79.6 % escape with the deepest
+penetration, 60.4 % with the sum; ``benchmarks/RESULTS.md``). The constraint rules compare it
+times the path's travelling distance (``constraints.path_measures``).
 
 The certified continuous check lives in ``jaxarm.certified``; its per-window test
 (``window_shortfall``, with ``reach_matrix``, ``tail_weights`` and ``speed_bound``) is here.

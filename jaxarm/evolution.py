@@ -13,9 +13,9 @@ escape iteration, history and best path recorded the same way.
   sample around a mean drawn uniformly from the range, with ``std_init`` a quarter of the
   range's mean width (pycma's usual advice), then told those samples' costs.
 - Costs, minimised: under the death penalty ``-fitness`` (every colliding path 0); under
-  feasibility rules ``-fitness`` for a free path and its violation (> 0) for a colliding one,
-  so that a free path beats every colliding one and less violation beats more (Deb's rules as
-  one number). evosax has no constraint handling of its own (its issues #38 and #71).
+  feasibility rules ``-fitness`` for a free path and its violation (> 0; the depth times the
+  distance, ``constraints.path_measures``) for a colliding one, so that a free path beats every
+  colliding one and less violation beats more (Deb's rules as one number). evosax has no constraint handling of its own (its issues #38 and #71).
 - The best path is the lowest cost seen so far (the earliest on ties).
 
 evosax is an optional dependency (``pip install 'jaxarm[bench]'`` or ``pip install evosax``);

@@ -150,7 +150,8 @@ def plot_escape_rates(study, ax=None, title: str | None = None):
     for label in ax.get_xticklabels():
         label.set_horizontalalignment("right")
     ax.legend(handles=[patches.Patch(color=palette[r][0], label=palette[r][1])
-                       for r in dict.fromkeys(rules)], fontsize=8, loc="upper right")
+                       for r in dict.fromkeys(rules)], fontsize=8, loc="upper left",
+              bbox_to_anchor=(1.0, 1.0))  # beside the axes: bars reach 1.0 on either side
     ax.set_title(title or f"{study.problem_name}: escape within {study.n_iters} iterations "
                           f"({study.methods[0].n_seeds} seeds)")
     return figure

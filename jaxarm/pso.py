@@ -28,8 +28,9 @@ pitfall evosax fixed in its PR #109; ``tie_break="random"`` is the alternative.
 Topology: ``"global"`` (the paper's gbest: every particle follows the swarm's best personal
 best), ``"ring"`` (lbest: particle i follows the best personal best among particles i - 1, i
 and i + 1, indices modulo n) or ``"global-ring"``: the global best for the first
-``GLOBAL_RING_SHARE`` (5 %) of the iterations, the ring after (chosen on 300 seeds of case 1
-and death-trap and checked on 1000 others; see the README). The reported global best is the
+``GLOBAL_RING_SHARE`` (5 %) of the iterations, the ring after (chosen by hand on 300 seeds of
+case 1 and death-trap for epsilon, when the constraint rules compared the depth of a collision
+alone; ``benchmarks/RESULTS.md`` has what it does since). The reported global best is the
 swarm's best personal best either way.
 
 Scores come from a constraint-handling rule (``jaxarm.constraints``) applied to what the

@@ -228,7 +228,8 @@ def _escape_section(report: _Report, case1, case1_study) -> None:
         f"## Escape probability on case 1 over {n} seeds, with 95 % Wilson intervals", "",
         "The paper's 7 runs per variant cannot separate the variants; this can. Beside the "
         "paper's death penalty, the same presets with feasibility rules (feasible beats "
-        "infeasible, less penetration beats more).", "",
+        "infeasible; between colliding paths, less penetration times travelling distance "
+        "beats more).", "",
         case1_study.table(), "",
     )
     report.figure(plot.plot_escape_rates(case1_study), "case1_escape_rates.png",

@@ -207,7 +207,8 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *, n_particles: i
       n_iters: PSO updates (paper: 100); iteration 0 is the initial swarm.
       n_restarts: independent swarms.
       seed: integer seed in [0, 2**31).
-      constraint: "death" (paper eq. 17) or "feasibility" (feasibility rules on the violation).
+      constraint: "death" (paper eq. 17), "feasibility" (feasibility rules), "epsilon" or
+        "penalty" (``jaxarm.constraints``).
       init_particles: optional particles, shape (n_given, n_free), put at the start of every
         restart's initial swarm (paper Table 6).
       refine: polish with ``jaxarm.refine`` after PSO: False, True (the best restart) or
