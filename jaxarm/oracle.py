@@ -26,7 +26,7 @@ def link_segments(problem, x, n_points: int) -> np.ndarray:
 
     start, goal = np.asarray(problem.start), np.asarray(problem.goal)
     basis = basis_coefficients(problem.degree)  # (degree - 4, degree + 1), float64
-    free = np.asarray(x, np.float64).reshape(len(x), -1, len(start))  # (paths, powers, joints)
+    free = np.asarray(x, np.float64).reshape(len(x), problem.degree - 5, len(start))
     polynomial = (np.einsum("pmj,mn->pjn", free, basis[1:])
                   + (goal - start)[:, None] * basis[0])
     polynomial[..., 0] += start
@@ -50,7 +50,7 @@ def dense_clearance(problem, x, n_points: int = 4001) -> np.ndarray:
       x: free parameters, shape (n_paths, n_free).
 
     Returns:
-      Array of shape (n_paths,), cm.
+      Array of shape (n_paths,), cm (empty for no paths).
     """
     import shapely
 

@@ -84,6 +84,7 @@ def test_certificate_fields_and_the_papers_free_paths(case2):
 def test_colliding_motions_report_the_penetration_found(case1):
     x = np.array([[0.0, 0.0, 0.0], [80.0, -60.0, 10.0]])
     dense = dense_clearance(case1, x)
+    assert dense_clearance(case1, x[:0]).shape == (0,)  # no paths (a search that never escaped)
     certificate = jaxarm.certify(case1, x)
     hits = dense < -0.1
     assert np.all(np.asarray(certificate.colliding)[hits])
