@@ -15,7 +15,8 @@ escape iteration, history and best path recorded the same way.
 - Costs, minimised: under the death penalty ``-fitness`` (every colliding path 0); under
   feasibility rules ``-fitness`` for a free path and its violation (> 0; the depth times the
   distance, ``constraints.path_measures``) for a colliding one, so that a free path beats every
-  colliding one and less violation beats more (Deb's rules as one number). evosax has no constraint handling of its own (its issues #38 and #71).
+  colliding one and less violation beats more (Deb's rules as one number). evosax has no
+  constraint handling of its own (its issues #38 and #71).
 - The best path is the lowest cost seen so far (the earliest on ties).
 
 evosax is an optional dependency (``pip install 'jaxarm[bench]'`` or ``pip install evosax``);
