@@ -63,6 +63,7 @@ class Measured(NamedTuple):
     objective: jax.Array  # to maximise when constraints are ignored (jaxarm: 1 / distance)
     fitness: jax.Array  # what is reported (the paper's eq. 17: 0 on collision)
     violation: jax.Array  # >= 0, 0 iff feasible (jaxarm: depth x distance, ``path_measures``)
+    reported_violation: jax.Array  # what is reported (jaxarm: ``jaxarm.violation``, the depth)
 
 
 def path_measures(fitness, violation, distance) -> Measured:
@@ -74,7 +75,8 @@ def path_measures(fitness, violation, distance) -> Measured:
       distance: the travelling distance (paper eq. 5), shape (n,), > 0.
 
     Returns:
-      ``Measured``: objective 1 / distance, the fitness, and the violation times the distance.
+      ``Measured``: objective 1 / distance, the fitness, the violation times the distance, and
+      the violation as given (reported).
 
     Example:
       >>> deep_and_short, deep_and_long = path_measures(
@@ -82,7 +84,8 @@ def path_measures(fitness, violation, distance) -> Measured:
       >>> deep_and_short < deep_and_long
       True
     """
-    return Measured(objective=1.0 / distance, fitness=fitness, violation=violation * distance)
+    return Measured(objective=1.0 / distance, fitness=fitness, violation=violation * distance,
+                    reported_violation=violation)
 
 
 class RuleState(NamedTuple):
@@ -126,7 +129,7 @@ def score(constraint, state: RuleState, measured: Measured, iteration, n_iters: 
 
     Example:
       >>> free_and_colliding = Measured(jnp.array([5.0, 8.0]), jnp.array([5.0, 0.0]),
-      ...                               jnp.array([0.0, 3.0]))
+      ...                               jnp.array([0.0, 3.0]), jnp.array([0.0, 3.0]))
       >>> state = initial_state(free_and_colliding)
       >>> score("feasibility", state, free_and_colliding, 1, 100).tolist()
       [5.0, -3.0]

@@ -2,7 +2,7 @@
 
 A strategy (a class of ``evosax.algorithms`` built from a population size and a solution
 shape alone: ``"evosax:CMA_ES"``, ``"evosax:DE"`` for ``DifferentialEvolution`` and
-``"evosax:PSO"`` are tested or tried; others are not) becomes a ``pso.Swarm`` pair, so it
+``"evosax:PSO"`` are tested or tried; others are not) becomes a ``pso.Swarm``, so it
 runs in the restart loop of ``jaxarm.restarts`` exactly like the PSO: vmapped over restarts
 in one compiled program, with the same seeds, the same budget (``n_particles`` evaluations
 at iteration 0, then ``n_particles`` per generation for ``n_iters`` generations) and the
@@ -112,17 +112,19 @@ def is_strategy(method) -> bool:
 
 
 class StrategyState(NamedTuple):
-    """The evosax state and the best path seen so far."""
+    """The evosax state, the best path seen so far, and what ``tell`` needs."""
 
-    inner: object  # the strategy's own state (a pytree)
+    inner: object  # the strategy's own state (a pytree; a placeholder before the first tell)
     best_x: jax.Array  # shape=(n_dims,)
     best_cost: jax.Array  # shape=()
     best_fitness: jax.Array  # shape=(), paper eq. 17 fitness of best_x
+    best_violation: jax.Array  # shape=(), its reported violation
+    tell_key: jax.Array  # the key of the next tell (or of the strategy's init)
 
 
 def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high, *,
                    n_particles: int, constraint) -> pso.Swarm:
-    """The strategy as ``Swarm(init, step)`` (module docstring).
+    """The strategy as a ``pso.Swarm`` (module docstring).
 
     Args:
       config: the strategy.
@@ -141,45 +143,50 @@ def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high,
                               DistributionBasedAlgorithm)
     feasibility = jnp.asarray(constraint) == constraint_index("feasibility")
 
-    def costs(x):
-        measured = measure_fn(x)
+    def start(key):
+        draw, start_key, ask, tell = jax.random.split(key, 4)
+        if distribution:
+            mean = jax.random.uniform(draw, low.shape, low.dtype, low, high)
+            x, inner = strategy.ask(ask, strategy.init(start_key, mean, params), params)
+        else:  # the strategy's state is made from the first costs: a placeholder until then
+            x = jax.random.uniform(draw, (n_particles,) + low.shape, low.dtype, low, high)
+            shapes = jax.eval_shape(strategy.init, start_key, x, jnp.zeros(n_particles, x.dtype),
+                                    params)
+            inner = jax.tree.map(lambda leaf: jnp.zeros(leaf.shape, leaf.dtype), shapes)
+        zero = jnp.zeros((), x.dtype)
+        return StrategyState(inner=inner, best_x=x[0], best_cost=jnp.asarray(jnp.inf, x.dtype),
+                             best_fitness=zero, best_violation=zero,
+                             tell_key=tell if distribution else start_key), x
+
+    def tell(state: StrategyState, x, measured, iteration) -> tuple[StrategyState, pso.StepInfo]:
         cost = jnp.where(feasibility & (measured.violation > 0), measured.violation,
                          -measured.fitness)
-        return cost, measured
 
-    def remember(state: StrategyState, x, cost, measured) -> tuple[StrategyState, pso.StepInfo]:
+        def told():
+            return strategy.tell(state.tell_key, x, cost, state.inner, params)[0]
+
+        if distribution:
+            inner = told()
+        else:  # the initial population makes the strategy's state
+            inner = pso.on_first_iteration(
+                iteration, lambda: strategy.init(state.tell_key, x, cost, params), told)
         best = jnp.argmin(cost)  # the first on ties
         better = cost[best] < state.best_cost
-        state = state._replace(best_x=jnp.where(better, x[best], state.best_x),
-                               best_cost=jnp.where(better, cost[best], state.best_cost),
-                               best_fitness=jnp.where(better, measured.fitness[best],
-                                                      state.best_fitness))
+        keep = lambda new, old: jnp.where(better, new, old)  # noqa: E731
+        state = state._replace(inner=inner, best_x=keep(x[best], state.best_x),
+                               best_cost=keep(cost[best], state.best_cost),
+                               best_fitness=keep(measured.fitness[best], state.best_fitness),
+                               best_violation=keep(measured.reported_violation[best],
+                                                   state.best_violation))
         return state, pso.StepInfo(global_position=state.best_x,
                                    global_fitness=state.best_fitness,
+                                   global_violation=state.best_violation,
                                    global_score=-state.best_cost,
                                    n_feasible=(measured.violation == 0).sum(dtype=jnp.int32))
 
-    def init(key):
-        draw, start, ask, tell = jax.random.split(key, 4)
-        if distribution:
-            mean = jax.random.uniform(draw, low.shape, low.dtype, low, high)
-            inner = strategy.init(start, mean, params)
-            x, inner = strategy.ask(ask, inner, params)
-            cost, measured = costs(x)
-            inner, _ = strategy.tell(tell, x, cost, inner, params)
-        else:
-            x = jax.random.uniform(draw, (n_particles,) + low.shape, low.dtype, low, high)
-            cost, measured = costs(x)
-            inner = strategy.init(start, x, cost, params)
-        empty = StrategyState(inner=inner, best_x=x[0], best_cost=jnp.asarray(jnp.inf, x.dtype),
-                              best_fitness=jnp.zeros((), x.dtype))
-        return remember(empty, x, cost, measured)
+    def ask(key, state: StrategyState):
+        ask_key, tell_key = jax.random.split(key)
+        x, inner = strategy.ask(ask_key, state.inner, params)
+        return state._replace(inner=inner, tell_key=tell_key), x
 
-    def step(key, state: StrategyState):
-        ask, tell = jax.random.split(key)
-        x, inner = strategy.ask(ask, state.inner, params)
-        cost, measured = costs(x)
-        inner, _ = strategy.tell(tell, x, cost, inner, params)
-        return remember(state._replace(inner=inner), x, cost, measured)
-
-    return pso.Swarm(init=init, step=step)
+    return pso.Swarm(start=start, tell=tell, ask=ask, measure=measure_fn)

@@ -59,28 +59,33 @@ def surrogate(spec, arrays, x, barrier_weight, margin, temperature):
 
 
 def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, temperature):
+    """Refine one path; its candidates (x itself first) are evaluated at one place in the loop,
+    so the program holds one copy of the problem's check."""
     gradient = jax.grad(lambda z: surrogate(spec, arrays, z, barrier_weight, margin, temperature))
-    start = vmapped_evaluate(spec)(arrays, x)
-    feasible = start.violation == 0
 
-    def body(carry, _):
-        params, state, best_x, best_fitness, n_accepted = carry
-        grads = gradient(params)
-        grads = jnp.where(jnp.isfinite(grads), grads, 0.0)
-        updates, state = optimizer.update(grads, state, params)
-        params = optax.apply_updates(params, updates)
+    def body(carry, step):
+        params, state, best_x, best_fitness, n_accepted, feasible, initial = carry
         candidate = vmapped_evaluate(spec)(arrays, params)
+        first = step == 0  # the input path: it sets the bar, and whether any step may be taken
+        feasible = jnp.where(first, candidate.violation == 0, feasible)
+        initial = jnp.where(first, candidate.fitness, initial)
+        best_fitness = jnp.where(first, candidate.fitness, best_fitness)
         accept = (candidate.violation == 0) & (candidate.fitness >= best_fitness) & feasible
         n_accepted = n_accepted + (accept & (candidate.fitness > best_fitness)).astype(jnp.int32)
         best_x = jnp.where(accept, params, best_x)
         best_fitness = jnp.where(accept, candidate.fitness, best_fitness)
-        return (params, state, best_x, best_fitness, n_accepted), best_fitness
+        # the last step's update is never evaluated: it keeps the loop's body in one piece
+        grads = gradient(params)
+        grads = jnp.where(jnp.isfinite(grads), grads, 0.0)
+        updates, state = optimizer.update(grads, state, params)
+        params = optax.apply_updates(params, updates)
+        return (params, state, best_x, best_fitness, n_accepted, feasible, initial), best_fitness
 
-    init = (x, optimizer.init(x), x, start.fitness, jnp.zeros((), jnp.int32))
-    (_, _, best_x, best_fitness, n_accepted), history = jax.lax.scan(body, init, None,
-                                                                       length=n_steps)
-    return best_x, best_fitness, start.fitness, n_accepted, jnp.concatenate(
-        [start.fitness[None], history])
+    zero = jnp.zeros((), x.dtype)
+    init = (x, optimizer.init(x), x, zero, jnp.zeros((), jnp.int32), jnp.asarray(False), zero)
+    (_, _, best_x, best_fitness, n_accepted, _, initial), history = jax.lax.scan(
+        body, init, jnp.arange(n_steps + 1))
+    return best_x, best_fitness, initial, n_accepted, history
 
 
 # One default instance: the optimizer is a static argument, so reusing it reuses the program.

@@ -183,9 +183,10 @@ class SwarmState(NamedTuple):
     best: Measured  # each field shape=(n_particles,): the personal bests' measurements
     best_score: jax.Array  # shape=(n_particles,), their scores under the rule of this update
     global_index: jax.Array  # shape=(), int32: particle whose personal best is the global best
-    iteration: jax.Array  # shape=(), int32: updates done so far
+    iteration: jax.Array  # shape=(), int32: updates done so far (0: the initial swarm)
     escape_iter: jax.Array  # shape=(), int32: first iteration with a feasible particle, or -1
     rule: constraints.RuleState  # what an adaptive constraint rule remembers
+    tie_key: jax.Array  # the key that breaks ties for the global best when ``position`` is told
 
 
 class StepInfo(NamedTuple):
@@ -193,6 +194,7 @@ class StepInfo(NamedTuple):
 
     global_position: jax.Array  # shape=(n_dims,), the global best
     global_fitness: jax.Array  # shape=(), its fitness
+    global_violation: jax.Array  # shape=(), its reported violation (0 iff feasible)
     global_score: jax.Array  # shape=(), its score
     n_feasible: jax.Array  # shape=(), int32: feasible particles at this iteration
 
@@ -201,20 +203,42 @@ MeasureFn = Callable[[jax.Array], Measured]
 
 
 class Swarm(NamedTuple):
-    """An optimiser as a pair of pure functions, closed over its configuration.
+    """An optimiser as pure ask-and-tell functions, and the measurement its paths get.
 
-    ``init(key) -> (state, info)`` and ``step(key, state) -> (state, info)``; any optimiser
-    with this pair and a ``StepInfo`` runs in ``restarts.run_restart``.
+    - ``start(key) -> (state, x)``: the paths of iteration 0, and a state awaiting them;
+    - ``tell(state, x, measured, iteration) -> (state, info)``: what ``measure(x)`` found at
+      ``iteration`` (0: the initial paths; the loop's counter, the same for every restart, so
+      a branch on it runs one side only under ``vmap``);
+    - ``ask(key, state) -> (state, x)``: the next paths;
+    - ``measure``: paths (n, n_dims) -> ``Measured``.
+
+    ``restarts.run_restart`` runs any optimiser given this way and calls ``measure`` at one
+    place, so a compiled search holds one copy of the problem's check: the certified check
+    is most of a search program, and its three copies (initial swarm, update, final best)
+    made the certified search take 8.5 s to compile against 3.5 s now (paper-case-1, by hand,
+    ``benchmarks/RESULTS.md``). ``init`` and ``step`` do one iteration, for stepping by hand.
     """
 
-    init: Callable[[jax.Array], tuple[SwarmState, StepInfo]]
-    step: Callable[[jax.Array, SwarmState], tuple[SwarmState, StepInfo]]
+    start: Callable
+    tell: Callable
+    ask: Callable
+    measure: MeasureFn
+
+    def init(self, key) -> tuple:
+        """Iteration 0, measured: ``(state, info)``."""
+        state, x = self.start(key)
+        return self.tell(state, x, self.measure(x), 0)
+
+    def step(self, key, state, iteration) -> tuple:
+        """Iteration ``iteration`` (>= 1), measured: ``(state, info)``."""
+        state, x = self.ask(key, state)
+        return self.tell(state, x, self.measure(x), iteration)
 
 
 def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high, *,
           n_particles: int, n_iters: int, init_particles=None, n_given=None,
           constraint="death") -> Swarm:
-    """PSO over the box [low, high] as an ``(init, step)`` pair (paper eqs. 13-16).
+    """PSO over the box [low, high] as a ``Swarm`` (paper eqs. 13-16).
 
     Args:
       params, rules: ``PSOConfig.params()`` (traced) and ``PSOConfig.rules()`` (static).
@@ -229,24 +253,25 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
       constraint: a name from ``CONSTRAINTS`` or its index (may be traced).
 
     Returns:
-      ``Swarm``; ``init`` gives iteration 0, each ``step`` one synchronous update.
+      ``Swarm``; ``start`` draws iteration 0, each ``ask`` one synchronous update.
 
     Example:
       >>> def sphere(x):
       ...     value = -(x ** 2).sum(-1)
-      ...     return Measured(value, value, jnp.where(x[:, 0] > 0, 0.0, 1.0))
+      ...     violation = jnp.where(x[:, 0] > 0, 0.0, 1.0)
+      ...     return Measured(value, value, violation, violation)
       >>> config = PRESETS["A"]
       >>> pair = swarm(config.params(), config.rules(), sphere, -jnp.ones(2), jnp.ones(2),
       ...              n_particles=5, n_iters=10)
       >>> state, info = pair.init(jax.random.key(0))
-      >>> state, info = pair.step(jax.random.key(1), state)
+      >>> state, info = pair.step(jax.random.key(1), state, 1)
       >>> int(state.iteration)
       1
     """
     def scores(rule_state, measured, iteration):
         return constraints.score(constraint, rule_state, measured, iteration, n_iters)
 
-    def init(key) -> tuple[SwarmState, StepInfo]:
+    def start(key) -> tuple[SwarmState, jax.Array]:
         position_key, velocity_key, tie_key = jax.random.split(key, 3)
         span = high - low
         position = low + span * jax.random.uniform(position_key, (n_particles, low.shape[-1]),
@@ -259,24 +284,23 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
         velocity = params.init_velocity * span * jax.random.uniform(
             velocity_key, position.shape, dtype=low.dtype, minval=-1.0, maxval=1.0
         )
-        measured = measure_fn(position)
-        rule_state = constraints.initial_state(measured)
-        score = scores(rule_state, measured, 0)
-        feasible = measured.violation == 0
-        state = SwarmState(
+        zeros = jnp.zeros(n_particles, low.dtype)
+        scalar = jnp.zeros((), low.dtype)
+        state = SwarmState(  # nothing measured yet: ``tell`` replaces every best
             position=position,
             velocity=velocity,
             best_position=position,
-            best=measured,
-            best_score=score,
-            global_index=_choose_global(tie_key, score, rules.tie_break),
+            best=Measured(zeros, zeros, zeros, zeros),
+            best_score=zeros,
+            global_index=jnp.zeros((), jnp.int32),
             iteration=jnp.zeros((), jnp.int32),
-            escape_iter=jnp.where(feasible.any(), 0, -1).astype(jnp.int32),
-            rule=rule_state,
+            escape_iter=jnp.full((), -1, jnp.int32),
+            rule=constraints.RuleState(scalar, scalar, scalar),
+            tie_key=tie_key,
         )
-        return state, _info(state, feasible)
+        return state, position
 
-    def step(key, state: SwarmState) -> tuple[SwarmState, StepInfo]:
+    def ask(key, state: SwarmState) -> tuple[SwarmState, jax.Array]:
         beta_key, tie_key = jax.random.split(key)
         shape = state.position.shape
         beta_shape = shape if rules.beta == "dimension" else shape[:1] + (1,)
@@ -293,31 +317,48 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
         limit = params.velocity_clamp * (high - low)
         velocity = jnp.clip(velocity, -limit, limit).astype(state.position.dtype)
         position = state.position + velocity
-        measured = measure_fn(position)
+        return state._replace(position=position, velocity=velocity, iteration=iteration,
+                              tie_key=tie_key), position
+
+    def tell(state: SwarmState, x, measured: Measured, iteration) -> tuple[SwarmState, StepInfo]:
+        first = iteration == 0  # the initial swarm: its positions are its bests
+        rule = on_first_iteration(iteration, lambda: constraints.initial_state(measured),
+                                  lambda: state.rule)
         # new positions and personal bests compared under the rule of this update
-        score = scores(state.rule, measured, iteration)
-        old_score = scores(state.rule, state.best, iteration)
-        improved = score > old_score
+        score = scores(rule, measured, state.iteration)
+        old_score = scores(rule, state.best, state.iteration)
+        improved = first | (score > old_score)
         best_score = jnp.where(improved, score, old_score)
         best = jax.tree.map(lambda new, old: jnp.where(improved, new, old), measured,
                             state.best)
         feasible = measured.violation == 0
         escaped_now = (state.escape_iter < 0) & feasible.any()
-        global_index = _choose_global(tie_key, best_score, rules.tie_break)
-        new_state = SwarmState(
-            position=position,
-            velocity=velocity,
-            best_position=jnp.where(improved[:, None], position, state.best_position),
+        global_index = _choose_global(state.tie_key, best_score, rules.tie_break)
+        updated = constraints.updated_state(rule, best.violation[global_index] == 0)
+        new_state = state._replace(
+            position=x,
+            best_position=jnp.where(improved[:, None], x, state.best_position),
             best=best,
             best_score=best_score,
             global_index=global_index,
-            iteration=iteration,
-            escape_iter=jnp.where(escaped_now, iteration, state.escape_iter),
-            rule=constraints.updated_state(state.rule, best.violation[global_index] == 0),
+            escape_iter=jnp.where(escaped_now, state.iteration, state.escape_iter),
+            rule=jax.tree.map(lambda kept, new: jnp.where(first, kept, new), rule, updated),
         )
         return new_state, _info(new_state, feasible)
 
-    return Swarm(init=init, step=step)
+    return Swarm(start=start, tell=tell, ask=ask, measure=measure_fn)
+
+
+def on_first_iteration(iteration, first: Callable, later: Callable):
+    """``first()`` at iteration 0, else ``later()``.
+
+    A Python choice for a concrete iteration (stepping by hand), else ``lax.cond``: the loop's
+    counter is the same for every restart, so only one side runs (computing the initial rule
+    state at every update, as a select would, made a sampled search about 10 % slower).
+    """
+    if isinstance(iteration, int):
+        return first() if iteration == 0 else later()
+    return jax.lax.cond(iteration == 0, first, later)
 
 
 def _social_attractor(state: SwarmState, ring) -> jax.Array:
@@ -346,6 +387,7 @@ def _info(state: SwarmState, feasible) -> StepInfo:
     return StepInfo(
         global_position=state.best_position[state.global_index],
         global_fitness=state.best.fitness[state.global_index],
+        global_violation=state.best.reported_violation[state.global_index],
         global_score=state.best_score[state.global_index],
         n_feasible=feasible.sum().astype(jnp.int32),
     )

@@ -8,8 +8,8 @@ how they are chunked. The compiled program is specialised only on sizes and mode
 PSO coefficients, the constraint rule, the init range and the seed are data, so a new scenario or
 preset reuses it.
 
-``run_restart`` knows nothing about PSO: any optimiser given as a ``pso.Swarm`` pair whose info
-is a ``pso.StepInfo`` runs in the same loop.
+``run_restart`` knows nothing about PSO: any optimiser given as a ``pso.Swarm`` (ask and tell
+functions and the measurement) whose info is a ``pso.StepInfo`` runs in the same loop.
 """
 
 from __future__ import annotations
@@ -49,34 +49,42 @@ class RestartOutcome(NamedTuple):
         return RestartOutcome(*(np.concatenate(parts) for parts in zip(self, *others)))
 
 
-def run_restart(key, swarm: pso.Swarm, n_iters: int) -> tuple[jax.Array, ...]:
-    """One restart: ``init`` then ``n_iters`` steps, tracking escape and the best fitness.
+def run_restart(key, swarm: pso.Swarm, n_iters: int) -> RestartOutcome:
+    """One restart: iteration 0 then ``n_iters`` updates, tracking escape and the best fitness.
+
+    The swarm's paths are measured at one place (in the loop's body), so a compiled program
+    holds one copy of the measurement.
 
     Args:
-      key: this restart's key; ``init`` gets ``fold_in(key, 0)``, step t ``fold_in(key, t)``.
+      key: this restart's key; ``start`` gets ``fold_in(key, 0)``, the ask of update t
+        ``fold_in(key, t)``.
       swarm: the optimiser.
       n_iters: updates (static).
 
     Returns:
-      best_x (n_free,), escape_iter (), escape_x (n_free,), history (n_iters + 1,).
+      ``RestartOutcome`` of one restart: best_x (n_free,), its fitness and violation as the
+      swarm measured them (), escape_iter (), escape_x (n_free,), history (n_iters + 1,).
     """
-    state, info = swarm.init(jax.random.fold_in(key, 0))
-    nan = jnp.full(info.global_position.shape, jnp.nan, info.global_position.dtype)
-    escaped = info.n_feasible > 0
-    escape_iter = jnp.where(escaped, 0, -1).astype(jnp.int32)
-    escape_x = jnp.where(escaped, info.global_position, nan)
+    state, x = swarm.start(jax.random.fold_in(key, 0))
+    zero = jnp.zeros((), x.dtype)
+    nan = jnp.full(x.shape[-1:], jnp.nan, x.dtype)
+    nothing_yet = pso.StepInfo(global_position=nan, global_fitness=zero, global_violation=zero,
+                               global_score=zero, n_feasible=jnp.zeros((), jnp.int32))
 
     def body(carry, iteration):
-        state, _, escape_iter, escape_x = carry
-        state, info = swarm.step(jax.random.fold_in(key, iteration), state)
+        state, x, _, escape_iter, escape_x = carry
+        state, info = swarm.tell(state, x, swarm.measure(x), iteration)
         escaped_now = (escape_iter < 0) & (info.n_feasible > 0)
         escape_iter = jnp.where(escaped_now, iteration, escape_iter)
         escape_x = jnp.where(escaped_now, info.global_position, escape_x)
-        return (state, info.global_position, escape_iter, escape_x), info.global_fitness
+        # the last iteration's ask is not measured: it keeps the loop's body in one piece
+        state, x = swarm.ask(jax.random.fold_in(key, iteration + 1), state)
+        return (state, x, info, escape_iter, escape_x), info.global_fitness
 
-    (_, best_x, escape_iter, escape_x), history = jax.lax.scan(
-        body, (state, info.global_position, escape_iter, escape_x), jnp.arange(1, n_iters + 1))
-    return best_x, escape_iter, escape_x, jnp.concatenate([info.global_fitness[None], history])
+    (_, _, info, escape_iter, escape_x), history = jax.lax.scan(
+        body, (state, x, nothing_yet, jnp.int32(-1), nan), jnp.arange(n_iters + 1))
+    return RestartOutcome(info.global_position, info.global_fitness, info.global_violation,
+                          escape_iter, escape_x, history)
 
 
 def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOParams,
@@ -115,14 +123,8 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
                           n_iters=n_iters, init_particles=init_particles, n_given=n_given,
                           constraint=constraint)
 
-    def one(restart):
-        key = jax.random.fold_in(jax.random.key(seed), restart)
-        best_x, escape_iter, escape_x, history = run_restart(key, swarm, n_iters)
-        final = evaluate(arrays, best_x)
-        return RestartOutcome(best_x, final.fitness, final.violation, escape_iter, escape_x,
-                              history)
-
-    return jax.vmap(one)(restart_ids)
+    return jax.vmap(lambda restart: run_restart(
+        jax.random.fold_in(jax.random.key(seed), restart), swarm, n_iters))(restart_ids)
 
 
 compiled_search = jax.jit(

@@ -13,7 +13,7 @@ from jaxarm.constraints import Measured
 OBJECTIVE = jnp.array([0.10, 0.20, 0.50, 0.40, 0.30])
 VIOLATION = jnp.array([0.0, 0.0, 1.0, 2.0, 4.0])
 MEASURED = Measured(objective=OBJECTIVE, fitness=jnp.where(VIOLATION == 0, OBJECTIVE, 0.0),
-                    violation=VIOLATION)
+                    violation=VIOLATION, reported_violation=VIOLATION)
 N_ITERS = 100
 
 
@@ -68,14 +68,15 @@ def test_the_swarm_scores_every_personal_best_under_the_rule_of_the_moment():
     def measure(x):  # free where x[0] > 0.6; objective peaks at x = (0.3, 0.3), inside
         objective = 1.0 - jnp.sum((x - 0.3) ** 2, axis=-1)
         violation = jnp.maximum(0.6 - x[:, 0], 0.0)
-        return Measured(objective, jnp.where(violation == 0, objective, 0.0), violation)
+        return Measured(objective, jnp.where(violation == 0, objective, 0.0), violation,
+                        violation)
 
     config = pso.PRESETS["A"]
     swarm = pso.swarm(config.params(), config.rules(), measure, -jnp.ones(2), jnp.ones(2),
                       n_particles=8, n_iters=20, constraint="epsilon")
     state, _ = swarm.init(jax.random.key(0))
     for t in range(1, 21):
-        state, info = swarm.step(jax.random.key(t), state)
+        state, info = swarm.step(jax.random.key(t), state, t)
         expected = constraints.score("epsilon", state.rule, state.best, t, 20)
         np.testing.assert_array_equal(np.asarray(state.best_score), np.asarray(expected))
         assert int(state.global_index) == int(np.argmax(np.asarray(state.best_score)))
@@ -88,7 +89,7 @@ def test_ring_topology_follows_the_best_of_each_particles_neighbours():
         position=best_position, velocity=best_position, best_position=best_position,
         best=MEASURED, best_score=jnp.array([5.0, 1.0, 2.0, 0.0, 3.0]),
         global_index=jnp.int32(0), iteration=jnp.int32(0), escape_iter=jnp.int32(0),
-        rule=constraints.initial_state(MEASURED))
+        rule=constraints.initial_state(MEASURED), tie_key=jax.random.key(0))
     attractor = np.asarray(pso._social_attractor(state, True))[:, 0]
     # neighbours (i-1, i, i+1) mod 5 -> the index of the best score among them
     np.testing.assert_array_equal(attractor, [0, 0, 2, 4, 0])

@@ -21,8 +21,9 @@ def make_swarm(config, measure_fn, n_particles, n_iters, low=LOW, high=HIGH,
 def sphere(x):
     """Maximise -|x - 0.3|^2; feasible where x[0] > 0.5."""
     fitness = -jnp.sum((x - 0.3) ** 2, axis=-1)
-    return Measured(objective=fitness, fitness=fitness,
-                    violation=jnp.where(x[:, 0] > 0.5, 0.0, 1.0))
+    violation = jnp.where(x[:, 0] > 0.5, 0.0, 1.0)
+    return Measured(objective=fitness, fitness=fitness, violation=violation,
+                    reported_violation=violation)
 
 
 def test_presets_are_the_papers_table_2():
@@ -50,7 +51,7 @@ def test_one_step_matches_a_hand_computation(config):
     # Make personal bests differ from positions so every term of the rule matters.
     state = state._replace(best_position=state.best_position * 0.5, global_index=jnp.int32(3))
     key = jax.random.key(7)
-    new, _ = swarm.step(key, state)
+    new, _ = swarm.step(key, state, 1)
 
     beta_key, _ = jax.random.split(key)
     shape = (5, 2) if config.beta == "dimension" else (5, 1)
@@ -78,7 +79,7 @@ def test_personal_and_global_bests_follow_strict_improvement():
     state, _ = swarm.init(jax.random.key(2))
     for t in range(5):
         previous = state
-        state, info = swarm.step(jax.random.key(t), state)
+        state, info = swarm.step(jax.random.key(t), state, t + 1)
         score = np.asarray(sphere(state.position).fitness)  # the death rule: score = fitness
         improved = score > np.asarray(previous.best_score)
         np.testing.assert_array_equal(np.asarray(state.best_score),
@@ -91,7 +92,8 @@ def test_personal_and_global_bests_follow_strict_improvement():
 
 def all_infeasible(x):
     zero = jnp.zeros(x.shape[0])
-    return Measured(objective=zero, fitness=zero, violation=zero + 1.0)
+    return Measured(objective=zero, fitness=zero, violation=zero + 1.0,
+                    reported_violation=zero + 1.0)
 
 
 def test_all_infeasible_death_penalty_keeps_particle_zero_as_global_best():
@@ -101,7 +103,7 @@ def test_all_infeasible_death_penalty_keeps_particle_zero_as_global_best():
     state, _ = swarm.init(jax.random.key(3))
     start = np.asarray(state.position)
     for t in range(4):
-        state, _ = swarm.step(jax.random.key(t), state)
+        state, _ = swarm.step(jax.random.key(t), state, t + 1)
         assert int(state.global_index) == 0
         np.testing.assert_array_equal(np.asarray(state.best_position), start)
     assert int(state.escape_iter) == -1
@@ -121,14 +123,15 @@ def test_nan_and_inf_never_become_a_best():
     def poisoned(x):
         fitness = jnp.where(x[:, 0] > 0, jnp.nan, -jnp.sum(x**2, axis=-1))
         fitness = fitness.at[1].set(jnp.inf)
-        return Measured(objective=fitness, fitness=fitness,
-                        violation=jnp.where(jnp.isfinite(fitness), 0.0, 1.0))
+        violation = jnp.where(jnp.isfinite(fitness), 0.0, 1.0)
+        return Measured(objective=fitness, fitness=fitness, violation=violation,
+                        reported_violation=violation)
 
     config = pso.PSOConfig("original", 2.0, 2.0, init_velocity=5.0)  # diverges quickly
     swarm = make_swarm(config, poisoned, n_particles=10, n_iters=30)
     state, _ = swarm.init(jax.random.key(4))
     for t in range(30):
-        state, info = swarm.step(jax.random.key(t), state)
+        state, info = swarm.step(jax.random.key(t), state, t + 1)
         assert np.all(np.isfinite(np.asarray(state.best_position)))
         assert np.isfinite(float(info.global_score))
         best = int(state.global_index)
@@ -143,7 +146,7 @@ def test_escape_iteration_is_the_first_with_a_feasible_particle():
     assert int(state.escape_iter) == -1
     first = None
     for t in range(1, 40):
-        state, info = swarm.step(jax.random.key(t), state)
+        state, info = swarm.step(jax.random.key(t), state, t)
         if first is None and int(info.n_feasible) > 0:
             first = t
     assert first is not None and int(state.escape_iter) == first
@@ -183,9 +186,9 @@ def test_global_ring_follows_the_global_best_then_the_ring():
     state, _ = both.init(jax.random.key(3))
     for t in range(1, 6):
         key = jax.random.key(100 + t)
-        expected, _ = (global_ if t <= 2 else ring).step(key, state)
-        other, _ = (ring if t <= 2 else global_).step(key, state)
-        state, _ = both.step(key, state)
+        expected, _ = (global_ if t <= 2 else ring).step(key, state, t)
+        other, _ = (ring if t <= 2 else global_).step(key, state, t)
+        state, _ = both.step(key, state, t)
         np.testing.assert_array_equal(state.position, expected.position)
         assert not np.array_equal(state.position, other.position)  # the two really differ
 

@@ -8,6 +8,7 @@ import pytest
 
 import jaxarm
 from jaxarm import constraints, pso, restarts
+from jaxarm.constraints import Measured
 from jaxarm.restarts import compiled_search
 
 SMALL = dict(n_particles=8, n_iters=12)
@@ -35,7 +36,9 @@ def test_restart_results_do_not_depend_on_how_many_run(case2, n_restarts):
 
 @pytest.mark.slow
 def test_jit_equals_no_jit_on_one_restart(case2):
-    case2 = case2.replace(n_samples=11)  # eager scans run sample by sample in Python
+    # eager scans run sample by sample in Python, every primitive compiled on its own: the
+    # sampled check (test_problem compares the certified one with and without jit)
+    case2 = case2.replace(n_samples=11, collision="sampled")
     config = pso.PRESETS["C"]
     args = (case2.spec, case2.arrays, config.params(), config.rules(),
             *(jnp.asarray(b, jnp.float32) for b in case2.bounds()), jnp.int32(0),
@@ -88,42 +91,46 @@ def test_restarts_sharded_over_two_devices_match_one_device(case2, tmp_path):
         np.concatenate([result.restarts.best_x.ravel(), result.restarts.history.ravel()]))
 
 
-def test_any_optimiser_with_an_init_step_pair_runs_in_the_restart_loop():
-    """A random search (not PSO) written as a ``pso.Swarm`` pair plugs into ``run_restart``."""
+def test_any_optimiser_given_as_ask_and_tell_runs_in_the_restart_loop():
+    """A random search (not PSO) written as a ``pso.Swarm`` plugs into ``run_restart``, which
+    measures its paths at one place."""
     low, high = jnp.full(2, -1.0), jnp.full(2, 1.0)
+    calls = []
 
-    def score(x):  # feasible where x[0] > 0.5
+    def measure(x):  # feasible where x[0] > 0.5
+        calls.append(x.shape)  # once per trace of the loop
         fitness = -jnp.sum((x - 0.3) ** 2, axis=-1)
-        return fitness, x[:, 0] > 0.5
+        violation = jnp.where(x[:, 0] > 0.5, 0.0, 1.0)
+        return Measured(fitness, fitness, violation, violation)
 
-    def sample(key):
-        position = jax.random.uniform(key, (6, 2), minval=low, maxval=high)
-        fitness, feasible = score(position)
-        return position, fitness, feasible
+    def sample(key, best):
+        return best, jax.random.uniform(key, (6, 2), minval=low, maxval=high)
 
-    def info(best, fitness, feasible):
-        return pso.StepInfo(global_position=best[0], global_fitness=best[1],
-                            global_score=best[1], n_feasible=feasible.sum().astype(jnp.int32))
+    def tell(best, x, measured, iteration):
+        row = jnp.argmax(measured.fitness)
+        better = measured.fitness[row] > best[1]
+        best = (jnp.where(better, x[row], best[0]), jnp.where(better, measured.fitness[row],
+                                                               best[1]))
+        return best, pso.StepInfo(global_position=best[0], global_fitness=best[1],
+                                  global_violation=jnp.where(best[0][0] > 0.5, 0.0, 1.0),
+                                  global_score=best[1],
+                                  n_feasible=(measured.violation == 0).sum(dtype=jnp.int32))
 
-    def init(key):
-        position, fitness, feasible = sample(key)
-        best = (position[jnp.argmax(fitness)], fitness.max())
-        return best, info(best, fitness, feasible)
+    def start(key):
+        return sample(key, (jnp.zeros(2), jnp.asarray(-jnp.inf)))
 
-    def step(key, best):
-        position, fitness, feasible = sample(key)
-        better = fitness.max() > best[1]
-        best = (jnp.where(better, position[jnp.argmax(fitness)], best[0]),
-                jnp.maximum(fitness.max(), best[1]))
-        return best, info(best, fitness, feasible)
-
+    swarm = pso.Swarm(start=start, tell=tell, ask=sample, measure=measure)
     run = jax.jit(restarts.run_restart, static_argnums=(1, 2))
-    best_x, escape_iter, escape_x, history = run(jax.random.key(0), pso.Swarm(init, step), 20)
-    assert history.shape == (21,) and np.all(np.diff(np.asarray(history)) >= 0)
-    assert float(-np.sum((np.asarray(best_x) - 0.3) ** 2)) == pytest.approx(float(history[-1]))
-    assert int(escape_iter) >= 0  # P(no sample with x[0] > 0.5 in 126) = 0.75 ** 126
-    escape_fitness = -np.sum((np.asarray(escape_x) - 0.3) ** 2)
-    assert escape_fitness == pytest.approx(float(history[int(escape_iter)]))
+    outcome = run(jax.random.key(0), swarm, 20)
+    assert calls == [(6, 2)]
+    history = np.asarray(outcome.history)
+    assert history.shape == (21,) and np.all(np.diff(history) >= 0)
+    assert float(-np.sum((np.asarray(outcome.best_x) - 0.3) ** 2)) == pytest.approx(history[-1])
+    assert float(outcome.best_fitness) == history[-1]
+    escape_iter = int(outcome.escape_iter)
+    assert escape_iter >= 0  # P(no sample with x[0] > 0.5 in 126) = 0.75 ** 126
+    escape_fitness = -np.sum((np.asarray(outcome.escape_x) - 0.3) ** 2)
+    assert escape_fitness == pytest.approx(float(history[escape_iter]))
 
 
 def test_two_processes_return_what_one_process_returns(case2, tmp_path):
