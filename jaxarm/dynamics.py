@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import functools
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from jaxarm.arm import Arm
+from jaxarm.programs import jit
 
 CM_PER_M = 100.0
 
@@ -36,7 +36,7 @@ def rigid_body(arm: Arm) -> tuple[np.ndarray, np.ndarray, float]:
     return (np.asarray(arm.lengths) / CM_PER_M, np.asarray(arm.masses), float(arm.gravity))
 
 
-@functools.partial(jax.jit, static_argnames=("gravity",))
+@functools.partial(jit, static_argnames=("gravity",))
 def inverse_dynamics(lengths, masses, position, velocity, acceleration, gravity: float = 9.81):
     """Joint torques of a planar serial arm of uniform rods (recursive Newton-Euler).
 

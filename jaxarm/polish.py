@@ -25,6 +25,7 @@ import optax
 from jaxarm import collision as collision_lib
 from jaxarm import path
 from jaxarm.problem import Problem, _as_params, on_padded_rows, vmapped_evaluate
+from jaxarm.programs import jit
 
 
 class RefineResult(NamedTuple):
@@ -92,7 +93,7 @@ def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, tem
 DEFAULT_OPTIMIZER = optax.adam(0.2)
 REFINE_BLOCK = 16  # the smallest padded batch
 
-_compiled_refine = jax.jit(
+_compiled_refine = jit(
     jax.vmap(_refine_one, in_axes=(None, None, 0, None, None, None, None, None)),
     static_argnums=(0, 3, 4),
 )

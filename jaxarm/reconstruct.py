@@ -29,6 +29,7 @@ import numpy as np
 from jaxarm import path
 from jaxarm.arm import Arm, inverse_kinematics, joint_positions
 from jaxarm.problem import Problem, fitness, joint_path
+from jaxarm.programs import jit
 from jaxarm.published import PublishedSet, a6_array
 
 
@@ -73,7 +74,7 @@ def _worst_errors_fn(x: np.ndarray, published: np.ndarray, n_samples: int):
         return jax.lax.map(lambda start: jax.vmap(worst, (None, 0))(start, goals),
                            starts.astype(jnp.float32))
 
-    return jax.jit(pairs)
+    return jit(pairs)
 
 
 def fit_postures(arm: Arm, end_points, sets: Sequence[PublishedSet], *, n_samples: int = 101,
@@ -173,7 +174,7 @@ def sweep_distances(problem: Problem, x, points, n_points: int, chunk: int = 256
     r = np.linspace(0.0, 1.0, n_points)
     lengths = jnp.asarray(problem.arm.lengths, jnp.float32)
 
-    @jax.jit
+    @jit
     def nearest(x_chunk):
         theta = joint_path(problem, x_chunk, r)  # (paths, n_points, joints)
         joints = joint_positions(lengths, theta)  # (paths, n_points, joints + 1, 2)

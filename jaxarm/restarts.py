@@ -23,6 +23,7 @@ import numpy as np
 from jaxarm import constraints, evolution, pso
 from jaxarm.constraints import constraint_index
 from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, vmapped_evaluate
+from jaxarm.programs import jit
 
 
 class RestartOutcome(NamedTuple):
@@ -127,7 +128,7 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
         jax.random.fold_in(jax.random.key(seed), restart), swarm, n_iters))(restart_ids)
 
 
-compiled_search = jax.jit(
+compiled_search = jit(
     search_restarts, static_argnames=("spec", "rules", "n_particles", "n_iters")
 )
 
