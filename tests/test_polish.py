@@ -24,7 +24,7 @@ def test_refine_never_worsens_and_never_collides(feasible_case2_paths, data, mod
                               max_size=4))
     x = feasible_case2_paths[rows]  # feasible when sampled; maybe not when certified
     feasible = np.asarray(jaxarm.violation(problem, x)) == 0
-    polished = jaxarm.refine(problem, x, n_steps=60)
+    polished = jaxarm.refine(problem, x, n_steps=20)
     assert np.all(polished.fitness >= polished.initial_fitness)
     assert not np.any(np.asarray(jaxarm.collides(problem, polished.x))[feasible])
     np.testing.assert_array_equal(polished.x[~feasible], x[~feasible].astype(np.float32))
