@@ -214,8 +214,8 @@ class Swarm(NamedTuple):
 
     ``restarts.run_restart`` runs any optimiser given this way and calls ``measure`` at one
     place, so a compiled search holds one copy of the problem's check: the certified check
-    is most of a search program, and its three copies (initial swarm, update, final best)
-    made the certified search take 8.5 s to compile against 3.5 s now (paper-case-1, by hand,
+    is most of a search program, and with three copies (initial swarm, update, final best) the
+    certified search took 10.4 s to compile against 5.8 s with one (paper-case-1, by hand,
     ``benchmarks/RESULTS.md``). ``init`` and ``step`` do one iteration, for stepping by hand.
     """
 
