@@ -32,13 +32,17 @@ def jit(fun=None, **options):
     return _Program(fun, options)
 
 
+try:  # JAX's own test for "outside any trace" (private: JAX exports none)
+    from jax._src.core import trace_state_clean as _trace_state_clean
+except ImportError:  # pragma: no cover
+    _trace_state_clean = None
+
+
 def _at_top_level(args) -> bool:
     """Whether a call with these arguments is outside any trace."""
-    try:
-        from jax._src.core import trace_state_clean
-    except ImportError:  # a JAX without it: tracer arguments are the usual sign of a trace
+    if _trace_state_clean is None:  # a JAX without it: tracer arguments are the usual sign
         return not any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree.leaves(args))
-    return trace_state_clean()
+    return _trace_state_clean()
 
 
 class _Program:

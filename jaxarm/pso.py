@@ -325,8 +325,8 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
         rule = on_first_iteration(iteration, lambda: constraints.initial_state(measured),
                                   lambda: state.rule)
         # new positions and personal bests compared under the rule of this update
-        score = scores(rule, measured, state.iteration)
-        old_score = scores(rule, state.best, state.iteration)
+        score = scores(rule, measured, iteration)
+        old_score = scores(rule, state.best, iteration)
         improved = first | (score > old_score)
         best_score = jnp.where(improved, score, old_score)
         best = jax.tree.map(lambda new, old: jnp.where(improved, new, old), measured,
@@ -341,7 +341,7 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
             best=best,
             best_score=best_score,
             global_index=global_index,
-            escape_iter=jnp.where(escaped_now, state.iteration, state.escape_iter),
+            escape_iter=jnp.where(escaped_now, iteration, state.escape_iter),
             rule=jax.tree.map(lambda kept, new: jnp.where(first, kept, new), rule, updated),
         )
         return new_state, _info(new_state, feasible)
@@ -354,7 +354,8 @@ def on_first_iteration(iteration, first: Callable, later: Callable):
 
     A Python choice for a concrete iteration (stepping by hand), else ``lax.cond``: the loop's
     counter is the same for every restart, so only one side runs (computing the initial rule
-    state at every update, as a select would, made a sampled search about 10 % slower).
+    state at every update, as a select would, made a sampled search 12-16 % slower,
+    ``benchmarks/pso_speed.py``; ``benchmarks/RESULTS.md``).
     """
     if isinstance(iteration, int):
         return first() if iteration == 0 else later()
