@@ -54,18 +54,16 @@ def posture_penetration(lengths, world, theta: list, margin=0.0, exact: bool = F
       theta: per-joint angles, each of shape (...,).
       margin: cm, a scalar.
       exact: exact distances (needed for a positive margin), or the separating-axis bound
-        for polygons (exact where <= 0: enough for margin 0); see ``world.separation_parts``.
+        for polygons (exact where <= 0: enough for margin 0); see ``world.polygon_slots``.
 
     Returns:
       Array of shape (...,), >= 0, zero iff every link keeps the margin from every obstacle.
     """
     total = jnp.zeros_like(theta[0])
     for link in link_endpoints(lengths, theta):
-        parts = world_lib.separation_parts(*link, world, exact)
-        for circle in parts.circles:
-            total = total + jnp.maximum(margin - circle, 0.0)
-        if parts.polygons is not None:
-            total = total + jnp.maximum(margin - parts.polygons, 0.0).sum(axis=0)
+        for separation in (world_lib.circle_slots(*link, world)
+                           + world_lib.polygon_slots(*link, world, exact)):
+            total = total + jnp.maximum(margin - separation, 0.0)
     return total
 
 

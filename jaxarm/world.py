@@ -261,9 +261,9 @@ def polygon_overlap_gap_xy(sx, sy, ex, ey, world: WorldArrays):
     their distance when positive, minus the penetration depth otherwise; +inf for empty slots.
     Coordinates of shape (...); returns shape (n_polygon_slots, ...).
 
-    The polygon slots stay an array axis (unlike ``circle_slots``): written out per slot and
-    per vertex, the certified check of a world with 8 polygon slots took 4 minutes and 8 GB
-    to compile."""
+    The polygon slots stay an array axis here (unlike ``circle_slots``): written out per slot
+    and per vertex, the certified check of a world with 8 polygon slots took 4 minutes and 8 GB
+    to compile. The sampled check calls it one slot at a time (``polygon_slots``)."""
     dtype, n = sx.dtype, sx.ndim
     # Written out per coordinate and per vertex slot (a static, small count): contractions and
     # reductions over axes of length 2 or 4 compile to slow loops on CPU, while this form
@@ -346,6 +346,34 @@ def separation_parts(sx, sy, ex, ey, world: WorldArrays, exact: bool = True) -> 
     return SeparationParts(
         circles=circle_slots(sx, sy, ex, ey, world),
         polygons=polygon(sx, sy, ex, ey, world) if world.vertices.shape[0] else None)
+
+
+def polygon_slots(sx, sy, ex, ey, world: WorldArrays, exact: bool = True) -> list:
+    """Signed separation of segments from every polygon slot (+inf for empty slots), computed
+    slot by slot: one array of the coordinates' shape (...) per slot.
+
+    Like ``separation_parts(...).polygons`` unstacked, but each slot is computed alone (as a
+    world of one polygon). The sampled check uses it: with the polygon slots as an array axis,
+    XLA compiled the search's check into slow loops whenever there were 2 or more slots
+    (measured by hand, 1000 sampled restarts of preset A: death-trap padded from 1 to 2
+    polygon slots 1.59 -> 7.04 s; slot by slot, polygon-field 13.7 -> 3.3 s, mixed-clutter
+    14.7 -> 3.4 s). The certified check keeps the array form: written out slot by slot, its
+    program for 4 polygon slots of 8 vertices took about 40 s to compile instead of 4-6 s.
+    """
+    polygon = polygon_separation_xy if exact else polygon_overlap_gap_xy
+    return [polygon(sx, sy, ex, ey, one_polygon(world, k))[0]
+            for k in range(world.vertices.shape[0])]
+
+
+def one_polygon(world: WorldArrays, slot: int) -> WorldArrays:
+    """Polygon slot ``slot`` of the world alone, as a world with one polygon slot and no
+    circles."""
+    pick = lambda a: a[slot:slot + 1]  # noqa: E731
+    return world._replace(
+        circles=world.circles[:0], circle_valid=world.circle_valid[:0],
+        vertices=pick(world.vertices), normals=pick(world.normals),
+        extent_low=pick(world.extent_low), extent_high=pick(world.extent_high),
+        edge_valid=pick(world.edge_valid), polygon_valid=pick(world.polygon_valid))
 
 
 def separation_xy(sx, sy, ex, ey, world: WorldArrays):

@@ -1,16 +1,33 @@
 """Shared fixtures. Tests run on CPU in float32 unless a test enters ``jax.enable_x64(True)``."""
 
 import os
+import shutil
+import tempfile
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
-# Tests do not read or fill the user's compilation cache unless asked (tests/test_cache.py).
-os.environ.setdefault("JAXARM_CACHE_DIR", "off")
+# One scratch compilation cache per test run, shared by its processes (the xdist workers and
+# the subprocesses tests start, which inherit the environment): a program one of them compiled
+# the others load instead of compiling it again. The user's own cache is never read or written
+# (tests/test_cache.py points its processes at folders of its own). The first process (xdist's
+# controller, or pytest without xdist) creates it and removes it at the end.
+_OWN_CACHE = "JAXARM_TEST_RUN_CACHE" not in os.environ
+if _OWN_CACHE:
+    os.environ["JAXARM_TEST_RUN_CACHE"] = tempfile.mkdtemp(prefix="jaxarm-test-xla-")
+os.environ["JAXARM_CACHE_DIR"] = os.environ["JAXARM_TEST_RUN_CACHE"]
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from hypothesis import settings  # noqa: E402
 
 import jaxarm  # noqa: E402
+
+jaxarm.enable_compilation_cache()
+
+
+def pytest_unconfigure(config):
+    if _OWN_CACHE:
+        shutil.rmtree(os.environ["JAXARM_TEST_RUN_CACHE"], ignore_errors=True)
+
 
 settings.register_profile("jaxarm", deadline=None, max_examples=40, derandomize=True)
 settings.load_profile("jaxarm")

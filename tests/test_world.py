@@ -29,6 +29,11 @@ def test_segment_separation_agrees_with_shapely_on_random_worlds(rng):
     # compiled once (op by op, 300 worlds took most of this test's time)
     separation_of, penetration_of, bound_of = (jax.jit(f) for f in (
         world_lib.separation, world_lib.penetration, world_lib.separation_bound_xy))
+    # The sampled check computes polygons slot by slot: the same numbers as the array form.
+    slot_forms = jax.jit(lambda *args: [jnp.stack(world_lib.polygon_slots(*args, exact=exact))
+                                        for exact in (True, False)])
+    array_forms = jax.jit(lambda *args: [world_lib.polygon_separation_xy(*args),
+                                         world_lib.polygon_overlap_gap_xy(*args)])
     checked = 0
     for _ in range(300):
         world = random_world(rng)
@@ -52,6 +57,10 @@ def test_segment_separation_agrees_with_shapely_on_random_worlds(rng):
             packed)).min(axis=0)
         assert np.all(bound[apart] <= distance[apart] + 1e-3)
         np.testing.assert_array_equal((bound < 0)[clear], hit[clear])
+        coordinates = [jnp.asarray(a) for a in (start[:, 0], start[:, 1], end[:, 0], end[:, 1])]
+        for by_slot, as_array in zip(slot_forms(*coordinates, packed),
+                                     array_forms(*coordinates, packed)):
+            np.testing.assert_allclose(by_slot, as_array, rtol=1e-6, atol=1e-5)
         checked += clear.sum()
     assert checked > 10_000
 
