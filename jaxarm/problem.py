@@ -174,7 +174,7 @@ class Problem:
         return tuple(finite_vector(name, value, self.n_free).tolist())
 
     def _check_posture(self, which: str) -> None:
-        theta = jnp.asarray(getattr(self, which))
+        theta = np.asarray(getattr(self, which), dtype=jnp.result_type(float))
         depth = np.asarray(_posture_depth(self.arm.lengths, self.arrays.world, theta))
         if np.any(depth > 0):
             link, slot = np.unravel_index(int(np.argmax(depth > 0)), depth.shape)
@@ -408,13 +408,22 @@ def on_padded_rows(kernel, x, smallest: int = SMALL_BATCH):
     Rows are independent (no path's result depends on the others in its batch). A traced x
     (inside the caller's own jit or vmap) is not padded: its program is compiled once anyway.
     """
-    rows = x.reshape((math.prod(x.shape[:-1]), x.shape[-1]))  # -1 fails on empty batches
+    if isinstance(x, jax.core.Tracer):
+        rows = x.reshape((math.prod(x.shape[:-1]), x.shape[-1]))  # -1 fails on empty batches
+        return jax.tree.map(lambda a: a.reshape(x.shape[:-1] + a.shape[1:]), kernel(rows))
+    # Padded and cut on the host: done with jax.numpy, each of these steps compiled a small
+    # program of its own in every new process (about 0.2 s of a warm first solve).
+    rows = np.asarray(x).reshape((math.prod(x.shape[:-1]), x.shape[-1]))
     n_rows = rows.shape[0]
-    if not isinstance(x, jax.core.Tracer):
-        extra = padded_size(n_rows, smallest) - n_rows
-        first = rows[:1] if n_rows else jnp.zeros((1, rows.shape[1]), rows.dtype)
-        rows = jnp.concatenate([rows, jnp.broadcast_to(first, (extra, rows.shape[1]))])
-    return jax.tree.map(lambda a: a[:n_rows].reshape(x.shape[:-1] + a.shape[1:]), kernel(rows))
+    first = rows[:1] if n_rows else np.zeros((1, rows.shape[1]), rows.dtype)
+    rows = np.concatenate([rows, np.repeat(first, padded_size(n_rows, smallest) - n_rows, 0)])
+
+    def cut(a):  # a traces when a caller's jit holds x as a constant
+        cut_a = (a if isinstance(a, jax.core.Tracer) else np.asarray(a))[:n_rows]
+        cut_a = cut_a.reshape(x.shape[:-1] + a.shape[1:])
+        return cut_a if isinstance(a, jax.core.Tracer) else jax.device_put(cut_a)
+
+    return jax.tree.map(cut, kernel(rows))
 
 
 def _evaluated(problem: Problem, x) -> Evaluation:
@@ -426,7 +435,9 @@ def _evaluated(problem: Problem, x) -> Evaluation:
 def _as_params(problem: Problem, x) -> jax.Array:
     if not isinstance(problem, Problem):
         raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
-    x = jnp.asarray(x)
+    if not isinstance(x, jax.core.Tracer):  # checked on the host (no small programs to compile)
+        x = np.asarray(x)
+        x = x.astype(jax.dtypes.canonicalize_dtype(x.dtype))  # as JAX holds it (f64 -> f32)
     if not jnp.issubdtype(x.dtype, jnp.floating):
         x = x.astype(jnp.result_type(float))
     if x.ndim == 0 or x.shape[-1] != problem.n_free:
@@ -434,8 +445,8 @@ def _as_params(problem: Problem, x) -> jax.Array:
             f"x must have shape (..., {problem.n_free}) for {problem.n_joints} joints and "
             f"degree {problem.degree}, got shape {x.shape}"
         )
-    if not isinstance(x, jax.core.Tracer) and not bool(jnp.all(jnp.isfinite(x))):
-        raise ValueError(f"x must be finite, got non-finite values in {np.asarray(x)!r}")
+    if not isinstance(x, jax.core.Tracer) and not np.all(np.isfinite(x)):
+        raise ValueError(f"x must be finite, got non-finite values in {x!r}")
     return x
 
 

@@ -46,6 +46,7 @@ from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxarm import constraints
 from jaxarm.choices import (BETA_MODES, PSO_METHODS, TIE_BREAKS, TOPOLOGIES,
@@ -136,7 +137,7 @@ class PSOConfig(NamedTuple):
             velocity_clamp=math.inf if self.velocity_clamp is None else self.velocity_clamp,
             ring_from=RING_FROM[self.topology],
         )
-        return PSOParams(*(jnp.asarray(v, dtype=jnp.result_type(float)) for v in values))
+        return PSOParams(*(np.asarray(v, dtype=jnp.result_type(float)) for v in values))
 
     def rules(self) -> SwarmRules:
         """The static part."""

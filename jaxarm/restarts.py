@@ -149,7 +149,7 @@ def restart_ids(first_restart: int, n_restarts: int) -> jax.Array:
     devices = jax.devices()
     ids = np.arange(first_restart, first_restart + padded_count(n_restarts), dtype=np.int32)
     if len(devices) == 1:
-        return jnp.asarray(ids)
+        return jax.device_put(ids)
     mesh = jax.sharding.Mesh(np.array(devices), ("restarts",))
     sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("restarts"))
     # Each process places only the ids of its own devices (the same call works on one process).
@@ -195,16 +195,16 @@ def run_restarts(problem: Problem, config: pso.PSOConfig, constraint: str, n_par
                  n_iters: int, seed: int, first_restart: int, n_restarts: int,
                  init_particles=None) -> RestartOutcome:
     """The compiled search for restarts ``first_restart ..``, as NumPy arrays."""
-    low, high = (jnp.asarray(b, dtype=jnp.result_type(float)) for b in problem.bounds())
-    given, n_given = np.zeros((n_particles, problem.n_free)), 0
+    # NumPy arguments: converting them with jax.numpy compiled a small program each, per process
+    low, high = (np.asarray(b, dtype=jnp.result_type(float)) for b in problem.bounds())
+    given, n_given = np.zeros((n_particles, problem.n_free), low.dtype), 0
     if init_particles is not None:
         n_given = len(init_particles)
         given[:n_given] = init_particles
     outcome = compiled_search(
         problem.spec, problem.arrays, config.params(), config.rules(), low, high,
-        jnp.int32(seed), restart_ids(first_restart, n_restarts), jnp.asarray(given, low.dtype),
-        jnp.int32(n_given), jnp.int32(constraint_index(constraint)), n_particles=n_particles,
-        n_iters=n_iters,
+        np.int32(seed), restart_ids(first_restart, n_restarts), given, np.int32(n_given),
+        np.int32(constraint_index(constraint)), n_particles=n_particles, n_iters=n_iters,
     )
     _RUN_PROGRAMS.add(_program_key(problem, config, n_particles, n_iters, n_restarts))
     return RestartOutcome(*(to_host(a)[:n_restarts] for a in outcome))

@@ -285,4 +285,4 @@ def _check_init_particles(problem, init_particles, n_particles):
         )
     if not np.all(np.isfinite(given)):
         raise ValueError(f"init_particles must be finite, got {init_particles!r}")
-    return jnp.asarray(given, dtype=jnp.result_type(float))
+    return given.astype(jnp.result_type(float))
