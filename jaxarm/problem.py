@@ -436,7 +436,14 @@ def _as_params(problem: Problem, x) -> jax.Array:
     if not isinstance(problem, Problem):
         raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
     if not isinstance(x, jax.core.Tracer):  # checked on the host (no small programs to compile)
-        x = np.asarray(x)
+        given = x
+        try:
+            x = np.asarray(x)
+        except ValueError:  # ragged rows
+            x = np.array(None)
+        if x.dtype.kind not in "biuf":
+            raise ValueError(f"x must be real numbers, shape (..., {problem.n_free}), "
+                             f"got {given!r}")
         x = x.astype(jax.dtypes.canonicalize_dtype(x.dtype))  # as JAX holds it (f64 -> f32)
     if not jnp.issubdtype(x.dtype, jnp.floating):
         x = x.astype(jnp.result_type(float))

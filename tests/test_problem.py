@@ -167,6 +167,9 @@ def test_bad_parameters_are_rejected(case2):
         jaxarm.fitness(case2, np.zeros(4))
     with pytest.raises(ValueError, match=r"x must be finite"):
         jaxarm.fitness(case2, [0.0, float("nan"), 1.0])
+    for not_numbers in ("abc", None, [[1.0, 2.0], [3.0]], [1j, 0.0, 0.0]):
+        with pytest.raises(ValueError, match=r"x must be real numbers, shape \(\.\.\., 3\)"):
+            jaxarm.certify(case2, not_numbers)
 
 
 @pytest.mark.parametrize("mode", ["sampled", "certified"])
