@@ -412,16 +412,18 @@ def on_padded_rows(kernel, x, smallest: int = SMALL_BATCH):
         rows = x.reshape((math.prod(x.shape[:-1]), x.shape[-1]))  # -1 fails on empty batches
         return jax.tree.map(lambda a: a.reshape(x.shape[:-1] + a.shape[1:]), kernel(rows))
     # Padded and cut on the host: done with jax.numpy, each of these steps compiled a small
-    # program of its own in every new process (about 0.2 s of a warm first solve).
+    # program of its own in every new process (benchmarks/RESULTS.md, "Persistent
+    # compilation cache").
     rows = np.asarray(x).reshape((math.prod(x.shape[:-1]), x.shape[-1]))
     n_rows = rows.shape[0]
     first = rows[:1] if n_rows else np.zeros((1, rows.shape[1]), rows.dtype)
     rows = np.concatenate([rows, np.repeat(first, padded_size(n_rows, smallest) - n_rows, 0)])
 
-    def cut(a):  # a traces when a caller's jit holds x as a constant
-        cut_a = (a if isinstance(a, jax.core.Tracer) else np.asarray(a))[:n_rows]
-        cut_a = cut_a.reshape(x.shape[:-1] + a.shape[1:])
-        return cut_a if isinstance(a, jax.core.Tracer) else jax.device_put(cut_a)
+    def cut(a):
+        shape = x.shape[:-1] + a.shape[1:]
+        if isinstance(a, jax.core.Tracer):  # a caller's jit holds x as a constant
+            return a[:n_rows].reshape(shape)
+        return jax.device_put(np.asarray(a)[:n_rows].reshape(shape))
 
     return jax.tree.map(cut, kernel(rows))
 
@@ -436,15 +438,13 @@ def _as_params(problem: Problem, x) -> jax.Array:
     if not isinstance(problem, Problem):
         raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
     if not isinstance(x, jax.core.Tracer):  # checked on the host (no small programs to compile)
-        given = x
         try:
-            x = np.asarray(x)
+            values = np.asarray(x)
         except ValueError:  # ragged rows
-            x = np.array(None)
-        if x.dtype.kind not in "biuf":
-            raise ValueError(f"x must be real numbers, shape (..., {problem.n_free}), "
-                             f"got {given!r}")
-        x = x.astype(jax.dtypes.canonicalize_dtype(x.dtype))  # as JAX holds it (f64 -> f32)
+            values = None
+        if values is None or values.dtype.kind not in "biuf":
+            raise ValueError(f"x must be real numbers, shape (..., {problem.n_free}), got {x!r}")
+        x = values.astype(jax.dtypes.canonicalize_dtype(values.dtype))  # as JAX holds it
     if not jnp.issubdtype(x.dtype, jnp.floating):
         x = x.astype(jnp.result_type(float))
     if x.ndim == 0 or x.shape[-1] != problem.n_free:
