@@ -30,6 +30,7 @@ _EXPORTS = {
     "collides": "jaxarm.problem",
     "fitness": "jaxarm.problem",
     "joint_path": "jaxarm.problem",
+    "share_capacities": "jaxarm.problem",
     "travelling_distance": "jaxarm.problem",
     "violation": "jaxarm.problem",
     "raise_degree": "jaxarm.path",

@@ -273,6 +273,43 @@ class Problem:
 MAX_ANGLE = 100.0  # rad; beyond it float32 angles lose the precision the geometry needs
 
 
+def share_capacities(problems) -> list[Problem]:
+    """The problems with one set of obstacle capacities per arm, so that they share compiled
+    programs: each gets, slot kind by slot kind, the largest capacities among the problems
+    with the same number of joints.
+
+    A search compiles once per capacities (with the arm, degree and check), and compiling is
+    most of a short study's time. Padded slots are empty but still computed, so a small scene
+    runs slower than at its own capacities (death-trap, 1000 sampled restarts, by hand:
+    1.50 s at (0, 1, 4), 2.05 s at (4, 4, 4)); its results are as valid, not bit for bit the
+    same (another compiled program rounds differently in the last bits). The quick report
+    uses it for its suite and its degree comparison.
+
+    Args:
+      problems: ``Problem``s.
+
+    Returns:
+      The problems, in order, each with its arm's shared ``capacities``.
+
+    Example:
+      >>> from jaxarm import load_scenario
+      >>> [p.capacities for p in share_capacities(
+      ...     [load_scenario("paper-case-1"), load_scenario("death-trap")])]
+      [(4, 1, 4), (4, 1, 4)]
+    """
+    problems = list(problems)
+    for index, problem in enumerate(problems):
+        if not isinstance(problem, Problem):
+            raise ValueError(f"problems[{index}] must be a jaxarm.Problem, got "
+                             f"{type(problem).__name__}")
+    largest: dict[int, tuple[int, ...]] = {}
+    for problem in problems:
+        known = largest.get(problem.n_joints, (0, 0, 0))
+        largest[problem.n_joints] = tuple(map(max, known, problem.capacities))
+    return [problem if problem.capacities == largest[problem.n_joints]
+            else problem.replace(capacities=largest[problem.n_joints]) for problem in problems]
+
+
 def _posture(which: str, value, arm: Arm) -> tuple[float, ...]:
     """Joint angles for ``arm`` (one per link, finite, within +-MAX_ANGLE), or a ValueError."""
     angles = finite_vector(which, value)

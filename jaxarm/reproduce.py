@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 from jaxarm import evolution, plot, published, reconstruct, scenarios, study
 from jaxarm._validate import positive_int
 from jaxarm.choices import LIMIT_UNITS
-from jaxarm.problem import certify, fitness
+from jaxarm.problem import certify, fitness, share_capacities
 from jaxarm.polish import refine
 from jaxarm.feasible import feasible_fraction
 from jaxarm.search import exact_text, solve
@@ -323,7 +323,7 @@ def _suite_problems(names) -> list:
     a bad name or file fails first."""
     if isinstance(names, str) or not names:
         raise ValueError(f"suite must be a non-empty list of scenario names, got {names!r}")
-    return [scenarios.load_scenario(name, collision="sampled") for name in names]
+    return share_capacities(scenarios.load_scenario(name, collision="sampled") for name in names)
 
 
 def _shared_chunk(n_seeds: int, suite_seeds: int) -> int:
@@ -341,7 +341,9 @@ def _suite(report: _Report, problems: list, n_seeds: int, chunk: int, progress) 
         "*Free share*: the share of the init range whose paths are collision-free "
         "(`jaxarm.feasible_fraction`, 10,000 uniform draws); *start*: the probability that the "
         "initial swarm of 20 already holds a free path, predicted from it (1 - (1 - p)^20) and "
-        "measured (seeds escaped at iteration 0, death penalty).", "",
+        "measured (seeds escaped at iteration 0, death penalty). Scenes of the same arm run at "
+        "that arm's largest obstacle capacities (`jaxarm.share_capacities`), so that they share "
+        "compiled programs; a run at a scene's own capacities can differ in the last bits.", "",
         "| scenario | links | free share [95 % CI] | start: predicted / measured | "
         "death penalty [95 % CI] | feasibility rules [95 % CI] | best fitness | "
         "certified (feasibility rules' best paths) |", "|---|---|---|---|---|---|---|---|",
@@ -539,7 +541,7 @@ def degree_refine_table(rows: list[dict]) -> list[str]:
 
 
 def beyond_paper_section(problems, n_restarts: int, degrees=(6, 7, 8)) -> list[str]:
-    rows = compare_degrees_and_refine(problems, degrees, n_restarts=n_restarts)
+    rows = compare_degrees_and_refine(share_capacities(problems), degrees, n_restarts=n_restarts)
     return [
         f"## Beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine "
         f"({n_restarts} restarts, preset A)",
@@ -547,6 +549,7 @@ def beyond_paper_section(problems, n_restarts: int, degrees=(6, 7, 8)) -> list[s
         "Escape rates under both rules; fitness over the feasibility-rule restarts that ended "
         "feasible, before and after `jaxarm.refine` (optax Adam on distance plus a clearance "
         "barrier, steps accepted only when collision-free and no less fit). Times include "
-        "compilation.", "",
+        "compilation. The cases run at shared obstacle capacities "
+        "(`jaxarm.share_capacities`).", "",
         *degree_refine_table(rows), "",
     ]

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 import jaxarm
 import jaxarm.problem  # the module itself, for evaluate and vmapped_evaluate
 from jaxarm import published
+from jaxarm.restarts import is_compiled
 
 CASE_2_FEASIBLE = [s for s in published.CASE_2 if s.feasible]
 
@@ -223,3 +224,30 @@ def test_overflowing_paths_are_never_feasible(case1, mode):
     evaluation = jaxarm.problem.evaluate(problem.spec, problem.arrays, x)
     assert np.all(np.asarray(evaluation.fitness) == 0)
     assert not np.any(np.asarray(evaluation.violation) == 0)
+
+
+def test_share_capacities_gives_each_arm_its_largest_slots_and_one_search_program():
+    case1 = jaxarm.load_scenario("paper-case-1", collision="sampled")
+    trap = jaxarm.load_scenario("death-trap", collision="sampled")
+    tunnel = jaxarm.load_scenario("four-link-tunnel", collision="sampled")
+    shared = jaxarm.share_capacities([case1, trap, tunnel])
+    assert [p.name for p in shared] == [case1.name, trap.name, tunnel.name]
+    assert shared[0].capacities == shared[1].capacities == (4, 1, 4)  # (4, 0, 4) with (0, 1, 4)
+    assert shared[2] is tunnel  # the only 4-link arm keeps its own capacities
+    # Same verdicts and fitness to float32 rounding at the padded capacities, paths from
+    # near the optimum to far out
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(64, case1.n_free)) * rng.choice([1.0, 10.0, 100.0], size=(64, 1))
+    for exact, padded in ((case1, shared[0]), (trap, shared[1])):
+        np.testing.assert_array_equal(jaxarm.collides(padded, x), jaxarm.collides(exact, x))
+        np.testing.assert_allclose(jaxarm.violation(padded, x), jaxarm.violation(exact, x),
+                                   rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(jaxarm.fitness(padded, x), jaxarm.fitness(exact, x),
+                                   rtol=1e-6)
+    # One compiled search serves both scenes once their capacities are shared
+    sizes = dict(n_particles=8, n_iters=12, n_restarts=3)
+    jaxarm.solve(shared[0], **sizes)
+    assert is_compiled(shared[1], jaxarm.PRESETS["A"], 8, 12, 3)
+    assert not is_compiled(trap, jaxarm.PRESETS["A"], 8, 12, 3)
+    with pytest.raises(ValueError, match=r"problems\[1\] must be a jaxarm.Problem"):
+        jaxarm.share_capacities([case1, "death-trap"])
