@@ -226,28 +226,34 @@ def test_overflowing_paths_are_never_feasible(case1, mode):
     assert not np.any(np.asarray(evaluation.violation) == 0)
 
 
-def test_share_capacities_gives_each_arm_its_largest_slots_and_one_search_program():
+def test_share_capacities_gives_each_arm_its_largest_slots_and_one_search_program(case2):
     case1 = jaxarm.load_scenario("paper-case-1", collision="sampled")
+    case2 = case2.replace(collision="sampled")
     trap = jaxarm.load_scenario("death-trap", collision="sampled")
     tunnel = jaxarm.load_scenario("four-link-tunnel", collision="sampled")
-    shared = jaxarm.share_capacities([case1, trap, tunnel])
-    assert [p.name for p in shared] == [case1.name, trap.name, tunnel.name]
-    assert shared[0].capacities == shared[1].capacities == (4, 1, 4)  # (4, 0, 4) with (0, 1, 4)
-    assert shared[2] is tunnel  # the only 4-link arm keeps its own capacities
-    # Same verdicts and fitness to float32 rounding at the padded capacities, paths from
-    # near the optimum to far out
+    shared = jaxarm.share_capacities([case1, case2, trap, tunnel])
+    assert [p.name for p in shared] == [case1.name, case2.name, trap.name, tunnel.name]
+    # (4, 0, 4), (1, 0, 4) and (0, 1, 4) give (4, 1, 4); the only 4-link arm keeps its own
+    assert {p.capacities for p in shared[:3]} == {(4, 1, 4)}
+    assert shared[3] is tunnel
+    # Same verdicts, violations and fitness (to float32 rounding) at the padded capacities:
+    # the paper's published paths (free and colliding) and random ones, near and far
     rng = np.random.default_rng(3)
-    x = rng.normal(size=(64, case1.n_free)) * rng.choice([1.0, 10.0, 100.0], size=(64, 1))
-    for exact, padded in ((case1, shared[0]), (trap, shared[1])):
-        np.testing.assert_array_equal(jaxarm.collides(padded, x), jaxarm.collides(exact, x))
+    x = np.array([s.a6 for s in published.CASE_1 + published.CASE_2])
+    x = np.concatenate([x, rng.normal(size=(64 - len(x), 3))
+                        * rng.choice([1.0, 10.0, 100.0], size=(64 - len(x), 1))])
+    for exact, padded in zip((case1, case2, trap), shared):
+        verdicts = np.asarray(jaxarm.collides(exact, x))
+        if exact is not trap:  # nothing escapes the trap; elsewhere both kinds are compared
+            assert 0 < verdicts.sum() < len(x)
+        np.testing.assert_array_equal(jaxarm.collides(padded, x), verdicts)
         np.testing.assert_allclose(jaxarm.violation(padded, x), jaxarm.violation(exact, x),
                                    rtol=1e-5, atol=1e-5)
         np.testing.assert_allclose(jaxarm.fitness(padded, x), jaxarm.fitness(exact, x),
                                    rtol=1e-6)
-    # One compiled search serves both scenes once their capacities are shared
-    sizes = dict(n_particles=8, n_iters=12, n_restarts=3)
-    jaxarm.solve(shared[0], **sizes)
-    assert is_compiled(shared[1], jaxarm.PRESETS["A"], 8, 12, 3)
+    # One compiled search serves every scene once their capacities are shared
+    jaxarm.solve(shared[0], n_particles=8, n_iters=12, n_restarts=3)
+    assert is_compiled(shared[2], jaxarm.PRESETS["A"], 8, 12, 3)
     assert not is_compiled(trap, jaxarm.PRESETS["A"], 8, 12, 3)
     with pytest.raises(ValueError, match=r"problems\[1\] must be a jaxarm.Problem"):
         jaxarm.share_capacities([case1, "death-trap"])
