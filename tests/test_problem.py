@@ -244,7 +244,7 @@ def test_share_capacities_gives_each_arm_its_largest_slots_and_one_search_progra
                         * rng.choice([1.0, 10.0, 100.0], size=(64 - len(x), 1))])
     for exact, padded in zip((case1, case2, trap), shared):
         verdicts = np.asarray(jaxarm.collides(exact, x))
-        if exact is not trap:  # nothing escapes the trap; elsewhere both kinds are compared
+        if exact is not trap:  # all 64 collide in death-trap; elsewhere both kinds are compared
             assert 0 < verdicts.sum() < len(x)
         np.testing.assert_array_equal(jaxarm.collides(padded, x), verdicts)
         np.testing.assert_allclose(jaxarm.violation(padded, x), jaxarm.violation(exact, x),
