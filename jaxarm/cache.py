@@ -8,7 +8,8 @@ before the first computation.
 Where: ``$JAXARM_CACHE_DIR`` if set (``off``, ``0`` or empty: no cache), else the user's cache
 directory (``$XDG_CACHE_HOME`` or ``~/.cache`` on Linux, ``~/Library/Caches`` on macOS,
 ``%LOCALAPPDATA%`` on Windows), under ``jaxarm/xla``. A cached program is the same program,
-so results are bit-identical with or without the cache.
+so results are bit-identical with or without the cache. The same call also keeps jaxarm's
+traced programs in ``traces/`` there (``jaxarm.traces``), so a new process skips tracing too.
 """
 
 from __future__ import annotations
@@ -37,7 +38,8 @@ def cache_dir() -> pathlib.Path | None:
 
 
 def enable_compilation_cache(path: str | os.PathLike | None = None) -> pathlib.Path | None:
-    """Keep compiled programs in ``path`` (default: ``cache_dir()``) for later processes.
+    """Keep compiled programs in ``path`` (default: ``cache_dir()``) for later processes, and
+    jaxarm's traced programs in ``path / "traces"`` (``jaxarm.traces``).
 
     Args:
       path: a directory (created if missing), or None for the default.
@@ -61,4 +63,7 @@ def enable_compilation_cache(path: str | os.PathLike | None = None) -> pathlib.P
 
     jax.config.update("jax_compilation_cache_dir", str(target))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_SECONDS)
+    from jaxarm import traces
+
+    traces.keep_in(target / "traces")
     return target

@@ -36,7 +36,7 @@ def rigid_body(arm: Arm) -> tuple[np.ndarray, np.ndarray, float]:
     return (np.asarray(arm.lengths) / CM_PER_M, np.asarray(arm.masses), float(arm.gravity))
 
 
-@functools.partial(jit, static_argnames=("gravity",))
+@functools.partial(jit, static_argnames=("gravity",), storable=True)
 def inverse_dynamics(lengths, masses, position, velocity, acceleration, gravity: float = 9.81):
     """Joint torques of a planar serial arm of uniform rods (recursive Newton-Euler).
 

@@ -61,7 +61,8 @@ def surrogate(spec, arrays, x, barrier_weight, margin, temperature):
 
 def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, temperature):
     """Refine one path; its candidates (x itself first) are evaluated at one place in the loop,
-    so the program holds one copy of the problem's check."""
+    so the program holds one copy of the problem's check. optimizer None: the default."""
+    optimizer = DEFAULT_OPTIMIZER if optimizer is None else optimizer
     gradient = jax.grad(lambda z: surrogate(spec, arrays, z, barrier_weight, margin, temperature))
 
     def body(carry, step):
@@ -90,12 +91,13 @@ def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, tem
 
 
 # One default instance: the optimizer is a static argument, so reusing it reuses the program.
+# It is passed as None (a static value with a stable repr: its traced program can be stored).
 DEFAULT_OPTIMIZER = optax.adam(0.2)
 REFINE_BLOCK = 16  # the smallest padded batch
 
 _compiled_refine = jit(
     jax.vmap(_refine_one, in_axes=(None, None, 0, None, None, None, None, None)),
-    static_argnums=(0, 3, 4),
+    static_argnums=(0, 3, 4), storable=True,
 )
 
 
@@ -130,7 +132,7 @@ def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weig
         zeros = np.zeros(leading, np.asarray(x).dtype)
         return RefineResult(np.asarray(x), zeros, zeros, np.zeros(leading, np.int32),
                             np.zeros(leading + (int(n_steps) + 1,), zeros.dtype))
-    optimizer = optimizer or DEFAULT_OPTIMIZER
+    optimizer = None if optimizer is DEFAULT_OPTIMIZER else optimizer
     # Padded to a few batch sizes (>= 16 rows): a few compiled programs per problem shape,
     # whatever the batch size, in one vectorised call.
     out = on_padded_rows(

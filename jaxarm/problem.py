@@ -32,7 +32,7 @@ from jaxarm.choices import COLLISION_MODES, one_of
 from jaxarm.programs import jit
 
 
-@functools.partial(jit, static_argnums=0)
+@functools.partial(jit, static_argnums=0, storable=True)
 def _posture_depth(lengths: tuple, world: WorldArrays, theta):
     """Penetration of every link into every slot at one posture (n_joints,) -> (n_joints, n_slots).
 
@@ -41,7 +41,7 @@ def _posture_depth(lengths: tuple, world: WorldArrays, theta):
     return collision_lib.penetration(lengths, world, theta)
 
 
-@functools.partial(jit, static_argnums=0)
+@functools.partial(jit, static_argnums=0, storable=True)
 def _posture_separation(lengths: tuple, world: WorldArrays, theta):
     """Exact separation (cm) of every link from every slot at one posture, (n_joints, n_slots)."""
     return jnp.stack([world_lib.separation_xy(*link, world)
@@ -419,7 +419,7 @@ def vmapped_evaluate(spec: ProblemSpec):
     return evaluate_spec
 
 
-_evaluate = jit(evaluate, static_argnums=0)
+_evaluate = jit(evaluate, static_argnums=0, storable=True)
 
 SMALL_BATCH = 64  # the smallest padded batch of ``fitness``, ``violation`` and ``certify``
 LARGE_BLOCK = 4096  # batches above this are padded to a multiple of it
@@ -578,7 +578,7 @@ class Certificate(NamedTuple):
     exhausted: jax.Array  # bool: neither, because the check's budget ran out
 
 
-@functools.partial(jit, static_argnums=0)
+@functools.partial(jit, static_argnums=0, storable=True)
 def _certify(spec, arrays, rows):
     check = certify_rows(spec, arrays, rows)
     free, colliding = check.free, check.colliding

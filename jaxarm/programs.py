@@ -12,13 +12,16 @@ bits. Other backends keep XLA's defaults (untested there).
 from __future__ import annotations
 
 import functools
+import inspect
 
 import jax
+
+from jaxarm import traces
 
 CPU_COMPILER_OPTIONS = {"xla_backend_optimization_level": 1}
 
 
-def jit(fun=None, **options):
+def jit(fun=None, *, storable: bool = False, **options):
     """``jax.jit(fun, **options)``, compiled with ``CPU_COMPILER_OPTIONS`` when JAX runs on CPU.
 
     The backend is read at the first call (so after ``jax.distributed.initialize()``, which must
@@ -26,10 +29,14 @@ def jit(fun=None, **options):
     it is a plain ``jax.jit``: XLA takes compiler options from the outermost program only. The
     result forwards ``trace``, ``lower`` and the other attributes of the top-level ``jax.jit``.
     Usable as ``functools.partial(jit, static_argnums=0)`` on a function.
+
+    ``storable=True`` lets ``jaxarm.traces`` keep the traced program on disk: only for a
+    module-level function whose trace depends on nothing but its arguments, jaxarm's source and
+    module constants (not a closure over values made at run time).
     """
     if fun is None:
-        return functools.partial(jit, **options)
-    return _Program(fun, options)
+        return functools.partial(jit, storable=storable, **options)
+    return _Program(fun, options, storable)
 
 
 try:  # JAX's own test for "outside any trace" (private: JAX exports none)
@@ -46,24 +53,52 @@ def _at_top_level(args) -> bool:
 
 
 class _Program:
-    """A ``jax.jit`` made at its first use, for the backend in use then."""
+    """A ``jax.jit`` made at its first use, for the backend in use then; with
+    ``jaxarm.traces`` on, top-level calls go through stored traced programs instead."""
 
-    def __init__(self, fun, options: dict):
-        self._fun, self._options, self._jitted = fun, options, None
+    def __init__(self, fun, options: dict, storable: bool = False):
+        self._fun, self._options, self._jitted, self._storable = fun, options, None, storable
         self._nested = jax.jit(fun, **options)
+        self._stored = {}  # Call.memo_key() -> traces.Stored
         functools.update_wrapper(self, fun)
+
+    def _compiler_options(self):
+        return CPU_COMPILER_OPTIONS if jax.default_backend() == "cpu" else None
 
     def _compiled(self):
         if self._jitted is None:
-            extra = CPU_COMPILER_OPTIONS if jax.default_backend() == "cpu" else None
-            self._jitted = jax.jit(self._fun, compiler_options=extra, **self._options)
+            self._jitted = jax.jit(self._fun, compiler_options=self._compiler_options(),
+                                   **self._options)
         return self._jitted
 
-    def __call__(self, *args, **kwargs):
-        program = self._compiled() if _at_top_level((args, kwargs)) else self._nested
-        return program(*args, **kwargs)
+    def _static_names(self) -> frozenset:
+        names = list(inspect.signature(self._fun).parameters)
+        numbers = self._options.get("static_argnums", ())
+        numbers = (numbers,) if isinstance(numbers, int) else numbers
+        named = self._options.get("static_argnames", ())
+        named = (named,) if isinstance(named, str) else named
+        return frozenset([names[i] for i in numbers] + list(named))
 
-    def __getattr__(self, name: str):  # trace, lower, _cache_size, ...
-        if name.startswith("__") or name in ("_fun", "_options", "_jitted", "_nested"):
+    def __call__(self, *args, **kwargs):
+        if not _at_top_level((args, kwargs)):
+            return self._nested(*args, **kwargs)
+        call = (traces.split_call(self._fun, self._static_names(), args, kwargs)
+                if self._storable and traces.usable() else None)
+        if call is None:
+            return self._compiled()(*args, **kwargs)
+        stored = self._stored.get(call.memo_key())
+        if stored is None:
+            label = f"{self._fun.__module__}.{self._fun.__qualname__} {self._options!r}"
+            stored = traces.stored_program(self._fun, label, call, self._compiler_options())
+            self._stored[call.memo_key()] = stored
+        return jax.tree.unflatten(stored.out_tree, stored.call(*call.leaves))
+
+    def _cache_size(self) -> int:
+        """Programs compiled so far: ``jax.jit``'s own and those run from stored traces."""
+        return self._compiled()._cache_size() + len(self._stored)
+
+    def __getattr__(self, name: str):  # trace, lower, ...
+        if name.startswith("__") or name in ("_fun", "_options", "_jitted", "_nested", "_stored",
+                                                   "_storable"):
             raise AttributeError(name)
         return getattr(self._compiled(), name)

@@ -129,7 +129,7 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
 
 
 compiled_search = jit(
-    search_restarts, static_argnames=("spec", "rules", "n_particles", "n_iters")
+    search_restarts, static_argnames=("spec", "rules", "n_particles", "n_iters"), storable=True
 )
 
 

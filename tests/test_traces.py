@@ -1,0 +1,112 @@
+"""Traced programs kept on disk (``jaxarm.traces``): reused by a new process, same bits, keyed
+on everything the trace depends on, and plain ``jax.jit`` whenever a call cannot be keyed."""
+
+import json
+import os
+import subprocess
+import sys
+
+import jax
+import numpy as np
+import optax
+
+import jaxarm
+from jaxarm import certified, polish, problem as problem_lib, traces
+
+RUN = """
+import json, jaxarm
+from jaxarm import traces
+exports = []
+export = traces._export
+traces._export = lambda *a: exports.append(1) or export(*a)
+jaxarm.enable_compilation_cache()
+problem = jaxarm.load_scenario("paper-case-2", collision="sampled")
+result = jaxarm.solve(problem, "A", n_particles=8, n_iters=12, n_restarts=3, seed=1)
+x = result.restarts.best_x
+polished = jaxarm.refine(problem, x, n_steps=5)
+print(json.dumps({"exports": len(exports), "x": x.tolist(),
+                  "fitness": result.restarts.best_fitness.tolist(),
+                  "refined": polished.x.tolist(),
+                  "clearance": jaxarm.certify(problem, x).clearance.tolist()}))
+"""
+
+
+def _run(folder) -> dict:
+    done = subprocess.run([sys.executable, "-c", RUN], capture_output=True, text=True,
+                          timeout=300, check=True,
+                          env=dict(os.environ, JAXARM_CACHE_DIR=str(folder)))
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_a_new_process_runs_the_stored_traces_and_gets_the_bits_of_plain_jit(tmp_path):
+    plain = _run("off")  # no cache: every program traced and compiled by jax.jit
+    first = _run(tmp_path / "xla")
+    stored = sorted(p.name for p in (tmp_path / "xla" / "traces").iterdir())
+    second = _run(tmp_path / "xla")
+    assert plain["exports"] == 0 and first["exports"] >= 3  # search, refine, certify at least
+    assert second["exports"] == 0  # nothing traced: every program came from the folder
+    assert sorted(p.name for p in (tmp_path / "xla" / "traces").iterdir()) == stored
+    for key in ("x", "fitness", "refined", "clearance"):
+        assert first[key] == plain[key] == second[key], key
+
+
+def _evaluate_call(problem, x):
+    static_names = frozenset({"spec"})
+    return traces.split_call(problem_lib.evaluate, static_names, (problem.spec, problem.arrays,
+                                                                  x), {})
+
+
+def test_keys_change_with_statics_shapes_and_module_constants(case2, monkeypatch):
+    x = np.zeros((4, case2.n_free), np.float32)
+
+    def key(problem=case2, rows=x):
+        return traces._disk_key("evaluate", _evaluate_call(problem, rows), None)
+
+    same = key()
+    assert key() == same
+    assert key(rows=np.zeros((8, case2.n_free), np.float32)) != same
+    assert key(problem=case2.replace(degree=7), rows=np.zeros((4, 6), np.float32)) != same
+    assert key(problem=case2.replace(collision="certified")) != same
+    monkeypatch.setattr(certified, "WINDOW_CHUNK", certified.WINDOW_CHUNK + 1)
+    assert key() != same
+    monkeypatch.undo()
+    assert key() == same
+    monkeypatch.setattr(certified, "_wide_lanes", lambda: 128)  # a function put in
+    assert key() != same
+
+
+def test_calls_that_cannot_be_keyed_run_as_plain_jit(case2, monkeypatch, tmp_path):
+    monkeypatch.setattr(traces, "_directory", tmp_path)
+    x = np.array([[66.7388, -28.1028, -9.8855]], np.float32)
+    sgd = optax.sgd(0.01)
+    assert traces.split_call(polish._refine_one, frozenset({"optimizer"}),
+                             (None, None, x, sgd, 3, 1.0, 0.5, 0.25), {}) is None
+    assert traces.split_call(problem_lib.evaluate, frozenset({"spec"}),
+                             (case2.spec, case2.arrays, "not an array"), {}) is None
+    custom = jaxarm.refine(case2, x, n_steps=3, optimizer=sgd)
+    assert not list(tmp_path.iterdir())  # nothing stored for a custom optimizer
+    default = jaxarm.refine(case2, x, n_steps=3)
+    assert len(list(tmp_path.iterdir())) == 1
+    assert custom.fitness[0] >= custom.initial_fitness[0] > 0.1
+    assert default.fitness[0] >= default.initial_fitness[0]
+
+
+def test_a_damaged_stored_trace_is_traced_again_and_replaced(case2, monkeypatch, tmp_path):
+    monkeypatch.setattr(traces, "_directory", tmp_path)
+    x = np.array([[66.7388, -28.1028, -9.8855], [0.0, 0.0, 0.0]], np.float32)
+    call = _evaluate_call(case2, x)
+
+    def run():  # XLA's default options on both sides
+        stored = traces.stored_program(problem_lib.evaluate, "evaluate", call, None)
+        return jax.tree.unflatten(stored.out_tree, stored.call(*call.leaves))
+
+    expected = jax.jit(problem_lib.evaluate, static_argnums=0)(case2.spec, case2.arrays, x)
+    first = run()
+    (path,) = tmp_path.iterdir()
+    path.write_bytes(b"not a stored program")
+    again = run()
+    assert traces._load(path) is not None  # replaced by a good one
+    for a, b, c in zip(expected, first, again):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(c))
+
