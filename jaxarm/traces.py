@@ -8,9 +8,11 @@ When the cache is on, jaxarm keeps every top-level program it traces as a serial
 stored program (``Exported.call``) instead of tracing the Python code again.
 
 A stored program is used only when everything its trace depends on is the same: the function,
-its static arguments, the shapes and dtypes of the others, jaxarm's source files and
-module-level constants, the versions of jax, jaxlib, numpy, optax and evosax, the backend and
-the JAX settings that change traces (x64, the PRNG). Calls that cannot be keyed that way run as
+its static arguments, the shapes and dtypes of the others, jaxarm's source files, the versions
+of jax, jaxlib, numpy, optax and evosax, the backend and the JAX settings that change traces
+(x64, the PRNG). Changes made to jaxarm's modules at run time (a test's monkeypatch of a
+constant) are not seen, as ``jax.jit``'s own cache does not see them: call
+``jaxarm.traces.keep_in(None)`` before patching. Calls that cannot be keyed that way run as
 plain ``jax.jit``: a static argument without a stable ``repr`` (a custom optax optimizer, say),
 several devices or processes, arguments that are not arrays or numbers. A program runs through
 ``Exported.call`` whether it was just traced or loaded, so XLA compiles the same module either
@@ -25,7 +27,6 @@ import inspect
 import os
 import pathlib
 import pickle
-import sys
 import tempfile
 import warnings
 from typing import Any, Callable, NamedTuple
@@ -174,8 +175,7 @@ def _write(path: pathlib.Path, exported, out_tree) -> None:
 
 def _disk_key(label: str, call: Call, compiler_options) -> str:
     material = repr((label, call.statics, str(call.in_tree), call.avals, compiler_options,
-                     jax.default_backend(), _versions(), _settings(), _source(),
-                     _module_constants()))
+                     jax.default_backend(), _versions(), _settings(), _source()))
     return hashlib.sha256(material.encode()).hexdigest()
 
 
@@ -203,20 +203,3 @@ def _source() -> str:
             digest.update(str(file.relative_to(package)).encode() + b"\0" + file.read_bytes())
         _source_fingerprint = digest.hexdigest()
     return _source_fingerprint
-
-
-def _module_constants() -> tuple:
-    """jaxarm's module-level numbers, strings and tuples as they are now (a test or a user may
-    have changed one since the source was read)."""
-    constants = []
-    for module_name, module in sorted(sys.modules.items()):
-        if module_name.split(".")[0] != "jaxarm" or module is None:
-            continue
-        for name, value in sorted(vars(module).items()):
-            if name.lstrip("_").isupper() and _stable(value):  # CONSTANTS by convention
-                constants.append((module_name, name, repr(value)))
-            elif callable(value) and getattr(value, "__module__", None) not in (None, module_name):
-                # a function put in by someone else (a monkeypatch) changes what is traced
-                constants.append((module_name, name, getattr(value, "__qualname__", "?"),
-                                  value.__module__))
-    return tuple(constants)
