@@ -14,9 +14,10 @@ import warnings
 import pdoc
 
 import jaxarm
+from jaxarm import traces
 import jaxarm.plot  # imported here, not under pdoc: matplotlib's font scan runs a subprocess
 
-MODULES = ["jaxarm", "jaxarm.plot"]
+MODULES = ["jaxarm", "jaxarm.plot", "jaxarm.traces"]
 HERE = pathlib.Path(__file__).parent
 
 
@@ -27,8 +28,8 @@ def _resolve_namedtuple_annotations() -> None:
     annotations as strings that pdoc evaluates in the wrong namespace and warns about
     (mitmproxy/pdoc#765); ``typing.get_type_hints`` resolves them in the class's own module.
     """
-    for name in jaxarm.__all__:
-        cls = getattr(jaxarm, name)
+    classes = [getattr(jaxarm, name) for name in jaxarm.__all__] + list(vars(traces).values())
+    for cls in classes:
         if isinstance(cls, type) and issubclass(cls, tuple) and hasattr(cls, "_fields"):
             hints = typing.get_type_hints(cls)
             cls.__new__.__annotations__ = {field: hints[field] for field in cls._fields}

@@ -100,8 +100,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"jaxarm {_version()}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     parser.add_argument("--no-cache", action="store_true",
-                        help="do not keep compiled programs on disk (default: keep them in "
-                             "$JAXARM_CACHE_DIR, else ~/.cache/jaxarm/xla)")
+                        help="do not keep compiled and traced programs on disk (default: keep "
+                             "them in $JAXARM_CACHE_DIR, else ~/.cache/jaxarm/xla)")
     processes = parser.add_argument_group(
         "several processes or machines",
         "Run the same command in every process; restarts are split over all of them, every "
