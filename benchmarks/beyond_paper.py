@@ -1,5 +1,8 @@
 """Degree 6 vs 7 vs 8 and PSO vs PSO + refine on the paper's cases; prints a markdown table.
 
+As in ``jaxarm reproduce-paper``: the paper's sampled check, the three cases at shared
+obstacle capacities (``jaxarm.share_capacities``).
+
     .venv/bin/python benchmarks/beyond_paper.py [--restarts 100]
 """
 
@@ -16,7 +19,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--restarts", type=int, default=100)
     args = parser.parse_args()
-    problems = [jaxarm.load_scenario(f"paper-case-{i}") for i in (1, 2, 3)]
+    problems = jaxarm.share_capacities([jaxarm.load_scenario(f"paper-case-{i}", collision="sampled")
+                                        for i in (1, 2, 3)])
     rows = compare_degrees_and_refine(problems, n_restarts=args.restarts)
     print(f"jax {jax.__version__} on {jax.default_backend()}, {platform.processor()}, "
           f"{args.restarts} restarts x 20 particles x 100 iterations, preset A")

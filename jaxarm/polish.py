@@ -15,6 +15,8 @@ moves freely on the surrogate; the barrier pulls it back out of obstacles.
 
 from __future__ import annotations
 
+import functools
+import operator
 from typing import NamedTuple
 
 import jax
@@ -42,28 +44,73 @@ def surrogate(spec, arrays, x, barrier_weight, margin, temperature):
     """The smooth objective: travelling distance plus a softplus clearance barrier; shape (...,).
 
     The barrier reads each link's clearance bound (``collision.posture_clearance_bound``: exact
-    for circles, the separating-axis gap for polygons) at every sample.
+    for circles, the separating-axis gap for polygons) at every sample. All samples are
+    computed at once, as (..., n_samples) arrays: refine's batches are small, and the gradient
+    of a ``lax.scan`` over the samples (``path.run_fold``) made refine 3-10 times slower
+    (``benchmarks/RESULTS.md``).
     """
-    def add_barrier(total, sample):
-        bounds = collision_lib.posture_clearance_bound(arrays.lengths, arrays.world,
-                                                       sample.derivatives[0])
-        return total + sum(temperature * jax.nn.softplus((margin - c) / temperature)
-                           for c in bounds)
+    angle, rate = _angles_and_rates(spec, arrays, x)
+    return _surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin, temperature)
 
+
+def surrogate_gradient(spec, arrays, x, barrier_weight, margin, temperature):
+    """``grad(surrogate)`` with respect to x, shape (..., n_free).
+
+    The chain rule through the joint angles is written out, its sums over the samples taken in
+    order: autodiff's own sums (the transpose of broadcasting x along the samples) are split
+    differently for different batch sizes, and a refined row's last bits then depended on how
+    many rows were refined with it.
+    """
+    bases = _sample_bases(spec, x.dtype)
+    angle, rate = _angles_and_rates(spec, arrays, x)
+
+    def total(angle, rate):
+        return jnp.sum(_surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin,
+                                             temperature))
+
+    by_angle, by_rate = jax.grad(total, argnums=(0, 1))(angle, rate)  # per joint (..., n_samples)
+    n_joints = len(angle)
+    # x[..., m * n_joints + k] is joint k's coefficient of the (m + 1)-th free basis function
+    return jnp.stack([_sum_over_samples(bases[0][:, m + 1] * by_angle[k]
+                                        + bases[1][:, m + 1] * by_rate[k])
+                      for m in range(x.shape[-1] // n_joints) for k in range(n_joints)], axis=-1)
+
+
+def _sample_bases(spec, dtype) -> list:
+    """``path.basis_values`` of orders 0 and 1 at the samples, each (n_samples, degree - 4)."""
+    r = np.linspace(0.0, 1.0, spec.n_samples)
+    return [jnp.asarray(path.basis_values(spec.degree, r, order), dtype) for order in (0, 1)]
+
+
+def _angles_and_rates(spec, arrays, x):
+    """Joint angles and their rates d theta / dr at the samples: two lists of n_joints arrays
+    of shape (..., n_samples)."""
+    return tuple(path.joint_angle_list(arrays.start, arrays.goal, x, basis, order)
+                 for order, basis in enumerate(_sample_bases(spec, x.dtype)))
+
+
+def _surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin, temperature):
+    weights = jnp.asarray(path.simpson_weights(spec.n_samples), angle[0].dtype)
+    distance = _sum_over_samples(weights * path.arc_length_rate(rate))  # paper eq. 5
     margin = margin + arrays.margin  # the barrier's margin on top of the problem's
-    barrier = path.SampleFold(init=jnp.zeros(x.shape[:-1], x.dtype), step=add_barrier,
-                              finish=lambda total: total / spec.n_samples, max_order=0)
-    distance = path.travelling_distance(arrays.start, arrays.goal, x, spec.degree,
-                                        spec.n_samples)
-    return distance + barrier_weight * path.run_fold(barrier, arrays.start, arrays.goal, x,
-                                                     spec.degree, spec.n_samples)
+    bounds = collision_lib.posture_clearance_bound(arrays.lengths, arrays.world, angle)
+    barrier = sum(temperature * jax.nn.softplus((margin - c) / temperature) for c in bounds)
+    return distance + barrier_weight * _sum_over_samples(barrier) / spec.n_samples
+
+
+def _sum_over_samples(values):
+    """(..., n_samples) -> (...,), added sample by sample in order: a reduction over the last
+    axis is split differently for different batch sizes."""
+    return functools.reduce(operator.add, (values[..., i] for i in range(values.shape[-1])))
 
 
 def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, temperature):
     """Refine one path; its candidates (x itself first) are evaluated at one place in the loop,
     so the program holds one copy of the problem's check. optimizer None: the default."""
     optimizer = DEFAULT_OPTIMIZER if optimizer is None else optimizer
-    gradient = jax.grad(lambda z: surrogate(spec, arrays, z, barrier_weight, margin, temperature))
+    def gradient(z):
+        return surrogate_gradient(spec, arrays, z, barrier_weight, margin, temperature)
+
 
     def body(carry, step):
         params, state, best_x, best_fitness, n_accepted, feasible, initial = carry

@@ -77,3 +77,52 @@ def test_refine_shares_programs_and_rows_do_not_depend_on_their_neighbours(
     np.testing.assert_array_equal(many.fitness[3:6], few.fitness)
     wide = jaxarm.refine(case2, rows[:40], n_steps=5)  # 64 rows
     np.testing.assert_array_equal(wide.x[:3], few.x)
+
+
+def _surrogate_one_sample_at_a_time(problem, x, barrier_weight, margin, temperature):
+    """The surrogate as folds over the samples (``path.run_fold``), as refine computed it
+    before it took all samples at once."""
+    import jax
+    import jax.numpy as jnp
+
+    from jaxarm import collision, path
+
+    arrays, spec = problem.arrays, problem.spec
+
+    def add_barrier(total, sample):
+        bounds = collision.posture_clearance_bound(arrays.lengths, arrays.world,
+                                                   sample.derivatives[0])
+        return total + sum(temperature * jax.nn.softplus((margin + arrays.margin - c)
+                                                         / temperature) for c in bounds)
+
+    barrier = path.SampleFold(init=jnp.zeros(x.shape[:-1], x.dtype), step=add_barrier,
+                              finish=lambda total: total / spec.n_samples, max_order=0)
+    distance = path.travelling_distance(arrays.start, arrays.goal, x, spec.degree,
+                                        spec.n_samples)
+    return distance + barrier_weight * path.run_fold(barrier, arrays.start, arrays.goal, x,
+                                                     spec.degree, spec.n_samples)
+
+
+@pytest.mark.parametrize("name", ["paper-case-2", "death-trap"])
+def test_the_surrogate_and_its_gradient_match_a_fold_over_the_samples(name):
+    import jax
+
+    from jaxarm import polish
+    from jaxarm.programs import jit  # compiles faster than jax.jit on CPU
+
+    problem = jaxarm.load_scenario(name).replace(degree=7, n_samples=21)
+    x = np.random.default_rng(3).uniform(-60, 60, (16, problem.n_free)).astype(np.float32)
+    weight, margin, temperature = 2.0, 1.0, 0.5  # none of them refine's defaults
+
+    def at_once(z):
+        return polish.surrogate(problem.spec, problem.arrays, z, weight, margin, temperature)
+
+    def folded(z):
+        return _surrogate_one_sample_at_a_time(problem, z, weight, margin, temperature)
+
+    np.testing.assert_allclose(jit(at_once)(x), jit(folded)(x), rtol=2e-5)
+    grad_folded = jit(jax.vmap(jax.grad(folded)))(x)
+    written_out = jit(lambda z: polish.surrogate_gradient(
+        problem.spec, problem.arrays, z, weight, margin, temperature))(x)
+    np.testing.assert_allclose(written_out, grad_folded, rtol=1e-4,
+                               atol=1e-4 * float(np.abs(grad_folded).max()))
