@@ -46,7 +46,7 @@ def surrogate(spec, arrays, x, barrier_weight, margin, temperature):
     The barrier reads each link's clearance bound (``collision.posture_clearance_bound``: exact
     for circles, the separating-axis gap for polygons) at every sample. All samples are
     computed at once, as (..., n_samples) arrays: refine's batches are small, and the gradient
-    of a ``lax.scan`` over the samples (``path.run_fold``) made refine 3-10 times slower
+    of a ``lax.scan`` over the samples (``path.run_fold``) made refine 3-12 times slower
     (``benchmarks/RESULTS.md``).
     """
     angle, rate = _angles_and_rates(spec, arrays, x)

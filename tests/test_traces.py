@@ -87,6 +87,10 @@ def test_calls_that_cannot_be_keyed_run_as_plain_jit(case2, monkeypatch, tmp_pat
     assert len(list(tmp_path.iterdir())) == 1
     assert custom.fitness[0] >= custom.initial_fitness[0] > 0.1
     assert default.fitness[0] >= default.initial_fitness[0]
+    traces.keep_in(None)  # the off switch (monkeypatch puts the run's folder back after)
+    assert traces.directory() is None and not traces.usable()
+    jaxarm.refine(case2, x, n_steps=4)  # a new shape: traced by jax.jit, nothing stored
+    assert len(list(tmp_path.iterdir())) == 1
 
 
 def test_a_damaged_stored_trace_is_traced_again_and_replaced(case2, monkeypatch, tmp_path):
