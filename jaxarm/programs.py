@@ -86,16 +86,19 @@ class _Program:
                 if self._storable and traces.usable() else None)
         if call is None:
             return self._compiled()(*args, **kwargs)
-        stored = self._stored.get(call.memo_key())
-        if stored is None:
+        key = call.memo_key()
+        if key not in self._stored:
             label = f"{self._fun.__module__}.{self._fun.__qualname__} {self._options!r}"
-            stored = traces.stored_program(self._fun, label, call, self._compiler_options())
-            self._stored[call.memo_key()] = stored
+            self._stored[key] = traces.stored_program(self._fun, label, call,
+                                                      self._compiler_options())
+        stored = self._stored[key]
+        if stored is None:  # jax.export refused it
+            return self._compiled()(*args, **kwargs)
         return jax.tree.unflatten(stored.out_tree, stored.call(*call.leaves))
 
     def _cache_size(self) -> int:
         """Programs compiled so far: ``jax.jit``'s own and those run from stored traces."""
-        return self._compiled()._cache_size() + len(self._stored)
+        return self._compiled()._cache_size() + sum(s is not None for s in self._stored.values())
 
     def __getattr__(self, name: str):  # trace, lower, ...
         if name.startswith("__") or name in ("_fun", "_options", "_jitted", "_nested", "_stored",

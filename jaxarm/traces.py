@@ -16,7 +16,10 @@ constant) are not seen, as ``jax.jit``'s own cache does not see them: call
 plain ``jax.jit``: a static argument without a stable ``repr`` (a custom optax optimizer, say),
 several devices or processes, arguments that are not arrays or numbers. A program runs through
 ``Exported.call`` whether it was just traced or loaded, so XLA compiles the same module either
-way (and finds it in the compilation cache the second time).
+way (and finds it in the compilation cache the second time). A program ``jax.export`` refuses
+(a custom call it does not allow, say) runs as plain ``jax.jit``, with a warning. The files are
+read with ``pickle`` (the result's tree structure beside the program): like XLA's own cache,
+which holds executables, the folder should be one only you can write to.
 """
 
 from __future__ import annotations
@@ -113,14 +116,21 @@ def usable() -> bool:
     return _directory is not None and jax.process_count() == 1 and jax.device_count() == 1
 
 
-def stored_program(fun: Callable, label: str, call: Call, compiler_options) -> Stored:
-    """The program for ``call``: loaded from the directory, or traced, exported and written."""
+def stored_program(fun: Callable, label: str, call: Call, compiler_options) -> Stored | None:
+    """The program for ``call``: loaded from the directory, or traced, exported and written;
+    None (with a warning) when ``jax.export`` refuses it, for ``jax.jit`` to run instead."""
     path = _directory / f"{_disk_key(label, call, compiler_options)}.exported"
     loaded = _load(path)
     if loaded is not None:
         exported, out_tree = loaded
     else:
-        exported, out_tree = _export(fun, call)
+        try:
+            exported, out_tree = _export(fun, call)
+        except Exception as error:  # noqa: BLE001 - e.g. a custom call export does not allow
+            warnings.warn(f"jaxarm: {label.split()[0]} is traced in every process: jax.export "
+                          f"refused it ({type(error).__name__}: {str(error)[:200]})",
+                          RuntimeWarning, stacklevel=3)
+            return None
         _write(path, exported, out_tree)
 
     def run(*leaves):

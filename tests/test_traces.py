@@ -9,6 +9,7 @@ import sys
 import jax
 import numpy as np
 import optax
+import pytest
 
 import jaxarm
 from jaxarm import polish, problem as problem_lib, traces
@@ -112,3 +113,20 @@ def test_a_damaged_stored_trace_is_traced_again_and_replaced(case2, monkeypatch,
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
         np.testing.assert_array_equal(np.asarray(a), np.asarray(c))
 
+
+
+def _doubled_on_the_host(v):
+    return jax.pure_callback(lambda a: np.asarray(a) * 2, jax.ShapeDtypeStruct(v.shape, v.dtype),
+                             v)
+
+
+def test_a_program_export_refuses_runs_as_plain_jit_with_a_warning(monkeypatch, tmp_path):
+    from jaxarm.programs import jit
+
+    monkeypatch.setattr(traces, "_directory", tmp_path)
+    program = jit(_doubled_on_the_host, storable=True)  # a host callback: export refuses it
+    v = np.arange(3.0, dtype=np.float32)
+    with pytest.warns(RuntimeWarning, match="_doubled_on_the_host is traced in every process"):
+        np.testing.assert_array_equal(program(v), 2 * v)
+    np.testing.assert_array_equal(program(v + 1), 2 * (v + 1))  # no second warning
+    assert not list(tmp_path.iterdir()) and program._cache_size() == 1
