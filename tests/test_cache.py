@@ -1,4 +1,4 @@
-"""The persistent compilation cache (``jaxarm.cache``): where it lives, that it is used, off."""
+"""The persistent compilation cache (``jaxarm.cache``): where it lives, on and off."""
 
 import os
 import pathlib
@@ -8,11 +8,6 @@ import sys
 import pytest
 
 from jaxarm import cache
-
-SOLVE = ("import jaxarm, numpy as np; {enable}"
-         "r = jaxarm.solve(jaxarm.load_scenario('paper-case-2', collision='sampled'), 'A', "
-         "n_particles=8, n_iters=12, n_restarts=3, seed=1); "
-         "print(repr(r.restarts.best_x.tolist()))")
 
 
 def test_cache_dir_follows_the_environment(monkeypatch, tmp_path):
@@ -31,21 +26,7 @@ def test_cache_dir_follows_the_environment(monkeypatch, tmp_path):
         cache.enable_compilation_cache(blocker / "xla")
 
 
-def _run(code: str, **env) -> str:
-    done = subprocess.run([sys.executable, "-c", code], env=dict(os.environ, **env),
-                          capture_output=True, text=True, timeout=300, check=True)
-    return done.stdout.strip().splitlines()[-1]
-
-
-def test_a_second_process_reads_the_programs_the_first_wrote(tmp_path):
-    folder = tmp_path / "xla"
-    code = SOLVE.format(enable="jaxarm.enable_compilation_cache(); ")
-    first = _run(code, JAXARM_CACHE_DIR=str(folder))
-    written = sorted(p.name for p in folder.iterdir())
-    assert any(name.startswith("jit_search_restarts") for name in written), written
-    second = _run(code, JAXARM_CACHE_DIR=str(folder))
-    assert second == first  # the same program, the same bits
-    assert sorted(p.name for p in folder.iterdir()) == written  # nothing compiled anew
+# A second process reading what the first wrote, bit for bit: tests/test_traces.py.
 
 
 def test_the_cli_caches_by_default_and_not_with_no_cache(tmp_path):

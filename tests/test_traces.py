@@ -13,6 +13,7 @@ import pytest
 
 import jaxarm
 from jaxarm import polish, problem as problem_lib, traces
+from jaxarm.programs import jit
 
 RUN = """
 import json, jaxarm
@@ -39,15 +40,20 @@ def _run(folder, first_line: str = "") -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def test_a_new_process_runs_the_stored_traces_and_gets_the_bits_of_plain_jit(tmp_path):
+def test_a_new_process_runs_the_stored_programs_and_gets_the_bits_of_plain_jit(tmp_path):
+    """The compilation cache and the stored traces (tests/test_cache.py tests the switches)."""
+    folder = tmp_path / "xla"
     plain = _run("off")  # no cache: every program traced and compiled by jax.jit
-    first = _run(tmp_path / "xla")
-    stored = sorted(p.name for p in (tmp_path / "xla" / "traces").iterdir())
+    first = _run(folder)
+    compiled = sorted(p.name for p in folder.iterdir())
+    assert any(name.startswith("jit_search_restarts") for name in compiled), compiled
+    stored = sorted(p.name for p in (folder / "traces").iterdir())
     # another entry point (more of jaxarm imported) finds the same programs
-    second = _run(tmp_path / "xla", "import jaxarm.cli, jaxarm.reproduce, jaxarm.plot")
+    second = _run(folder, "import jaxarm.cli, jaxarm.reproduce, jaxarm.plot")
     assert plain["exports"] == 0 and first["exports"] >= 3  # search, refine, certify at least
     assert second["exports"] == 0  # nothing traced: every program came from the folder
-    assert sorted(p.name for p in (tmp_path / "xla" / "traces").iterdir()) == stored
+    assert sorted(p.name for p in (folder / "traces").iterdir()) == stored
+    assert sorted(p.name for p in folder.iterdir()) == compiled  # nothing compiled anew
     for key in ("x", "fitness", "refined", "clearance"):
         assert first[key] == plain[key] == second[key], key
 
@@ -85,12 +91,14 @@ def test_calls_that_cannot_be_keyed_run_as_plain_jit(case2, monkeypatch, tmp_pat
     custom = jaxarm.refine(case2, x, n_steps=5, optimizer=sgd)
     assert not list(tmp_path.iterdir())  # nothing stored for a custom optimizer
     assert custom.fitness[0] >= custom.initial_fitness[0] > 0.1
-    jaxarm.fitness(case2, x)  # a storable program: stored
+    # a storable program of its own (jaxarm's are already in this process's memory)
+    evaluate = jit(problem_lib.evaluate, static_argnums=0, storable=True)
+    evaluate(case2.spec, case2.arrays, x)
     assert len(list(tmp_path.iterdir())) == 1
     traces.keep_in(None)  # the off switch (monkeypatch puts the run's folder back after)
     assert traces.directory() is None and not traces.usable()
-    jaxarm.fitness(case2, np.repeat(x, 70, axis=0))  # a new shape: traced by jax.jit only
-    assert len(list(tmp_path.iterdir())) == 1
+    evaluate(case2.spec, case2.arrays, np.repeat(x, 2, axis=0))  # traced by jax.jit only
+    assert len(list(tmp_path.iterdir())) == 1 and evaluate._cache_size() == 2
 
 def test_a_damaged_stored_trace_is_traced_again_and_replaced(case2, monkeypatch, tmp_path):
     monkeypatch.setattr(traces, "_directory", tmp_path)
@@ -119,8 +127,6 @@ def _doubled_on_the_host(v):
 
 
 def test_a_program_export_refuses_runs_as_plain_jit_with_a_warning(monkeypatch, tmp_path):
-    from jaxarm.programs import jit
-
     monkeypatch.setattr(traces, "_directory", tmp_path)
     program = jit(_doubled_on_the_host, storable=True)  # a host callback: export refuses it
     v = np.arange(3.0, dtype=np.float32)
