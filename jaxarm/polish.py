@@ -108,9 +108,9 @@ def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, tem
     """Refine one path; its candidates (x itself first) are evaluated at one place in the loop,
     so the program holds one copy of the problem's check. optimizer None: the default."""
     optimizer = DEFAULT_OPTIMIZER if optimizer is None else optimizer
+
     def gradient(z):
         return surrogate_gradient(spec, arrays, z, barrier_weight, margin, temperature)
-
 
     def body(carry, step):
         params, state, best_x, best_fitness, n_accepted, feasible, initial = carry

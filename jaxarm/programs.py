@@ -31,8 +31,8 @@ def jit(fun=None, *, storable: bool = False, **options):
     Usable as ``functools.partial(jit, static_argnums=0)`` on a function.
 
     ``storable=True`` lets ``jaxarm.traces`` keep the traced program on disk: only for a
-    module-level function whose trace depends on nothing but its arguments, jaxarm's source and
-    module constants (not a closure over values made at run time).
+    module-level function whose trace depends on nothing but its arguments and jaxarm's source
+    as written (not a closure over values made at run time).
     """
     if fun is None:
         return functools.partial(jit, storable=storable, **options)
@@ -59,7 +59,7 @@ class _Program:
     def __init__(self, fun, options: dict, storable: bool = False):
         self._fun, self._options, self._jitted, self._storable = fun, options, None, storable
         self._nested = jax.jit(fun, **options)
-        self._stored = {}  # Call.memo_key() -> traces.Stored
+        self._stored = {}  # Call.memo_key() -> traces.Stored, or None where export refused it
         functools.update_wrapper(self, fun)
 
     def _compiler_options(self):
