@@ -49,7 +49,7 @@ def surrogate(spec, arrays, x, barrier_weight, margin, temperature):
     of a ``lax.scan`` over the samples (``path.run_fold``) made refine 3-12 times slower
     (``benchmarks/RESULTS.md``).
     """
-    angle, rate = _angles_and_rates(spec, arrays, x)
+    angle, rate = _angles_and_rates(arrays, x, _sample_bases(spec, x.dtype))
     return _surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin, temperature)
 
 
@@ -62,7 +62,7 @@ def surrogate_gradient(spec, arrays, x, barrier_weight, margin, temperature):
     many rows were refined with it.
     """
     bases = _sample_bases(spec, x.dtype)
-    angle, rate = _angles_and_rates(spec, arrays, x)
+    angle, rate = _angles_and_rates(arrays, x, bases)
 
     def total(angle, rate):
         return jnp.sum(_surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin,
@@ -82,11 +82,11 @@ def _sample_bases(spec, dtype) -> list:
     return [jnp.asarray(path.basis_values(spec.degree, r, order), dtype) for order in (0, 1)]
 
 
-def _angles_and_rates(spec, arrays, x):
-    """Joint angles and their rates d theta / dr at the samples: two lists of n_joints arrays
-    of shape (..., n_samples)."""
+def _angles_and_rates(arrays, x, bases):
+    """Joint angles and their rates d theta / dr at the samples (``_sample_bases``): two lists
+    of n_joints arrays of shape (..., n_samples)."""
     return tuple(path.joint_angle_list(arrays.start, arrays.goal, x, basis, order)
-                 for order, basis in enumerate(_sample_bases(spec, x.dtype)))
+                 for order, basis in enumerate(bases))
 
 
 def _surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin, temperature):

@@ -12,7 +12,6 @@ bits. Other backends keep XLA's defaults (untested there).
 from __future__ import annotations
 
 import functools
-import inspect
 
 import jax
 
@@ -71,8 +70,9 @@ class _Program:
                                    **self._options)
         return self._jitted
 
+    @functools.cached_property
     def _static_names(self) -> frozenset:
-        names = list(inspect.signature(self._fun).parameters)
+        names = list(traces.signature(self._fun).parameters)
         numbers = self._options.get("static_argnums", ())
         numbers = (numbers,) if isinstance(numbers, int) else numbers
         named = self._options.get("static_argnames", ())
@@ -82,7 +82,7 @@ class _Program:
     def __call__(self, *args, **kwargs):
         if not _at_top_level((args, kwargs)):
             return self._nested(*args, **kwargs)
-        call = (traces.split_call(self._fun, self._static_names(), args, kwargs)
+        call = (traces.split_call(self._fun, self._static_names, args, kwargs)
                 if self._storable and traces.usable() else None)
         if call is None:
             return self._compiled()(*args, **kwargs)

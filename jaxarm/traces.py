@@ -24,6 +24,7 @@ which holds executables, the folder should be one only you can write to.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.metadata
 import inspect
@@ -39,7 +40,6 @@ import numpy as np
 from jax import export
 
 _directory: pathlib.Path | None = None
-_source_fingerprint: str | None = None
 VERSIONED = ("jax", "jaxlib", "numpy", "optax", "evosax", "flatbuffers")
 # JAX settings that change what a trace produces.
 TRACE_SETTINGS = ("jax_enable_x64", "jax_default_prng_impl", "jax_threefry_partitionable",
@@ -77,11 +77,18 @@ class Call(NamedTuple):
         return self.statics, self.in_tree, self.avals
 
 
+@functools.cache
+def signature(fun: Callable) -> inspect.Signature:
+    """``inspect.signature(fun)``, worked out once per function (calls read it every time)."""
+    return inspect.signature(fun)
+
+
 def split_call(fun: Callable, static_names: frozenset, args: tuple, kwargs: dict) -> Call | None:
     """``fun(*args, **kwargs)`` as static values and array leaves, or None when it cannot be
-    keyed (a static value without a stable repr, a leaf that is not an array or a number)."""
+    keyed (a static value without a stable repr, a leaf that is not an array or a number).
+    Arrays are on one device: ``usable`` is false otherwise."""
     try:
-        bound = inspect.signature(fun).bind(*args, **kwargs)
+        bound = signature(fun).bind(*args, **kwargs)
     except TypeError:
         return None
     statics = tuple((name, value) for name, value in bound.arguments.items()
@@ -92,8 +99,6 @@ def split_call(fun: Callable, static_names: frozenset, args: tuple, kwargs: dict
     leaves, in_tree = jax.tree.flatten(dynamic)
     avals = []
     for leaf in leaves:
-        if isinstance(leaf, jax.Array) and len(leaf.devices()) != 1:
-            return None
         if not isinstance(leaf, (np.ndarray, np.generic, jax.Array, bool, int, float)):
             return None
         aval = jax.typeof(leaf)
@@ -143,11 +148,10 @@ def stored_program(fun: Callable, label: str, call: Call, compiler_options) -> S
 
 def _export(fun: Callable, call: Call):
     statics, in_tree = dict(call.statics), call.in_tree
-    signature = inspect.signature(fun)
     out_trees = []
 
     def flat(*leaves):
-        bound = signature.bind_partial(**statics, **jax.tree.unflatten(in_tree, leaves))
+        bound = signature(fun).bind_partial(**statics, **jax.tree.unflatten(in_tree, leaves))
         out_leaves, out_tree = jax.tree.flatten(fun(*bound.args, **bound.kwargs))
         out_trees.append(out_tree)
         return out_leaves
@@ -189,7 +193,9 @@ def _disk_key(label: str, call: Call, compiler_options) -> str:
     return hashlib.sha256(material.encode()).hexdigest()
 
 
+@functools.cache
 def _versions() -> tuple:
+    """The versioned packages' installed versions (read once per process)."""
     found = []
     for name in VERSIONED:
         try:
@@ -203,13 +209,11 @@ def _settings() -> tuple:
     return tuple((name, repr(jax.config.values.get(name))) for name in TRACE_SETTINGS)
 
 
+@functools.cache
 def _source() -> str:
     """A hash of jaxarm's Python source files (computed once per process)."""
-    global _source_fingerprint
-    if _source_fingerprint is None:
-        digest = hashlib.sha256()
-        package = pathlib.Path(__file__).parent
-        for file in sorted(package.rglob("*.py")):
-            digest.update(str(file.relative_to(package)).encode() + b"\0" + file.read_bytes())
-        _source_fingerprint = digest.hexdigest()
-    return _source_fingerprint
+    digest = hashlib.sha256()
+    package = pathlib.Path(__file__).parent
+    for file in sorted(package.rglob("*.py")):
+        digest.update(str(file.relative_to(package)).encode() + b"\0" + file.read_bytes())
+    return digest.hexdigest()
