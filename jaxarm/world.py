@@ -376,6 +376,22 @@ def one_polygon(world: WorldArrays, slot: int) -> WorldArrays:
         edge_valid=pick(world.edge_valid), polygon_valid=pick(world.polygon_valid))
 
 
+def pad_polygon_slots(world: WorldArrays, n_slots: int) -> WorldArrays:
+    """The world with empty polygon slots added up to ``n_slots`` (none removed): every
+    separation keeps its value, and the added slots give +inf."""
+    missing = n_slots - world.vertices.shape[0]
+    if missing <= 0:
+        return world
+
+    def pad(a):
+        a = jnp.asarray(a)  # packed worlds hold NumPy arrays (float64 before jnp converts them)
+        return jnp.concatenate([a, jnp.zeros((missing,) + a.shape[1:], a.dtype)])
+
+    return world._replace(vertices=pad(world.vertices), normals=pad(world.normals),
+                          extent_low=pad(world.extent_low), extent_high=pad(world.extent_high),
+                          edge_valid=pad(world.edge_valid), polygon_valid=pad(world.polygon_valid))
+
+
 def separation_xy(sx, sy, ex, ey, world: WorldArrays):
     """Like ``separation`` for coordinates given separately, each of shape (...); returns
     shape (n_slots, ...)."""

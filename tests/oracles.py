@@ -92,7 +92,8 @@ def obstacle_bounds(world: jaxarm.World) -> np.ndarray:
 
 
 def thin_wall_problem(rng):
-    """A 0.2 cm wall somewhere in the arm's way: what a sampled check can step over."""
+    """A 0.2 cm wall somewhere in the arm's way: what a sampled check can step over. The
+    problem has the world's own capacities: one circle slot and one polygon slot."""
     arm = jaxarm.Arm((30.0, 30.0, 20.0))
     while True:
         corner = rng.uniform(-50, 50, 2)
@@ -101,6 +102,6 @@ def thin_wall_problem(rng):
                              circles=[(*rng.uniform(-60, 60, 2), rng.uniform(1, 5))])
         try:
             return jaxarm.Problem(arm=arm, start=[-1.0, 1.2, 0.8], goal=[1.2, -0.6, 1.0],
-                                  world=world, capacities=CAPACITIES)
+                                  world=world)
         except ValueError:
             continue

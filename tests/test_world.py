@@ -65,6 +65,20 @@ def test_segment_separation_agrees_with_shapely_on_random_worlds(rng):
     assert checked > 10_000
 
 
+def test_padded_polygon_slots_keep_every_separation_and_add_empty_ones(rng):
+    packed = jaxarm.World(boxes=[((-10.0, 5.0), (10.0, 25.0))],
+                          circles=[(30.0, 0.0, 4.0)]).pack((1, 1, 4))
+    padded = world_lib.pad_polygon_slots(packed, 3)
+    assert padded.vertices.shape == (3, 4, 2) and not np.any(padded.polygon_valid[1:])
+    assert world_lib.pad_polygon_slots(packed, 1) is packed
+    start = rng.uniform(-40, 40, (50, 2)).astype(np.float32)
+    end = start + rng.normal(0, 20, (50, 2)).astype(np.float32)
+    before = np.asarray(world_lib.separation(start, end, packed))  # (50, 2): circle, box
+    after = np.asarray(world_lib.separation(start, end, padded))  # (50, 4)
+    np.testing.assert_array_equal(after[:, :2], before)
+    assert np.all(after[:, 2:] == np.inf)
+
+
 @pytest.mark.parametrize("offset, collides", [(0.5, True), (-0.5, False), (0.0, False)])
 def test_segment_parallel_to_a_box_side(offset, collides):
     """Paper-case-1 has horizontal last links (exactly zero dy) next to a box's bottom side."""
