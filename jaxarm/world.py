@@ -377,8 +377,9 @@ def one_polygon(world: WorldArrays, slot: int) -> WorldArrays:
 
 
 def pad_polygon_slots(world: WorldArrays, n_slots: int) -> WorldArrays:
-    """The world with empty polygon slots added up to ``n_slots`` (none removed): every
-    separation keeps its value, and the added slots give +inf."""
+    """The world with empty polygon slots added up to ``n_slots`` (none removed): the same
+    separations (up to float rounding: XLA compiles the larger world's program differently)
+    and +inf for the added slots."""
     missing = n_slots - world.vertices.shape[0]
     if missing <= 0:
         return world
