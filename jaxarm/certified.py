@@ -373,8 +373,15 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
     def test_and_advance(state):
         lanes, next_item, out = state
         piece, verdict = lanes.piece, lanes.verdict
-        shortfall, nearest, radius = _test_pieces(lengths, world, start, goal, lanes.x, piece,
-                                                  tables, step, margin)
+        # A branch, though one lane is nearly always active: XLA's CPU backend otherwise
+        # computed the pieces' Taylor shift and speed bound again inside each of the ~16
+        # fusions reading the results (benchmarks/RESULTS.md, "One polygon slot in the
+        # certified bisection"); no lane reads them when none is active.
+        shortfall, nearest, radius = jax.lax.cond(
+            lanes.active.any(),
+            lambda: _test_pieces(lengths, world, start, goal, lanes.x, piece, tables, step,
+                                 margin),
+            lambda: (jnp.zeros(n_lanes, dtype),) * 3)
         # Pieces wholly outside [0, 1] (before r = 0 or after r = 1) need no test.
         half = jnp.left_shift(1, piece.level) >> 1  # 2**(level - 1); 0 at level 0
         outside = (piece.level > 0) & (
