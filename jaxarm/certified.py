@@ -341,9 +341,9 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
     n_samples = tables.shape[0]
     # With one polygon slot the minimum over the slots is no reduction at all, and XLA then
     # repeated a piece's geometry in each of the ~16 fusions that read its result. An empty
-    # second slot keeps it in one (measured by hand, 100 certified restarts of preset A:
-    # death-trap 19.2 -> 11.1 s, five-link-detour 25.7 -> 18.3 s; certify's program for
-    # death-trap compiled in 3.9 s instead of 6.4 s).
+    # second slot keeps it in one; with the branch below as well, death-trap's first certify
+    # (compiling) took 5.1 s against 8.3 s without it (benchmarks/RESULTS.md, "The certified
+    # bisection computes each piece once").
     world = world_lib.pad_polygon_slots(world, 2) if world.vertices.shape[0] == 1 else world
 
     def refill(lanes: _Lanes, next_item):
@@ -375,8 +375,8 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
         piece, verdict = lanes.piece, lanes.verdict
         # A branch, though one lane is nearly always active: XLA's CPU backend otherwise
         # computed the pieces' Taylor shift and speed bound again inside each of the ~16
-        # fusions reading the results (benchmarks/RESULTS.md, "One polygon slot in the
-        # certified bisection"); no lane reads them when none is active.
+        # fusions reading the results (benchmarks/RESULTS.md, same section); no lane reads
+        # them when none is active.
         shortfall, nearest, radius = jax.lax.cond(
             lanes.active.any(),
             lambda: _test_pieces(lengths, world, start, goal, lanes.x, piece, tables, step,
