@@ -13,17 +13,18 @@ import jax
 
 import jaxarm
 from jaxarm.reproduce import compare_degrees_and_refine, degree_refine_table
+from jaxarm.restarts import N_ITERS, N_PARTICLES
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--restarts", type=int, default=100)
     args = parser.parse_args()
-    problems = jaxarm.share_capacities([jaxarm.load_scenario(f"paper-case-{i}", collision="sampled")
-                                        for i in (1, 2, 3)])
+    problems = jaxarm.share_capacities(
+        [jaxarm.load_scenario(f"paper-case-{i}", collision="sampled") for i in (1, 2, 3)])
     rows = compare_degrees_and_refine(problems, n_restarts=args.restarts)
     print(f"jax {jax.__version__} on {jax.default_backend()}, {platform.processor()}, "
-          f"{args.restarts} restarts x 20 particles x 100 iterations, preset A")
+          f"{args.restarts} restarts x {N_PARTICLES} particles x {N_ITERS} iterations, preset A")
     print("\n".join(degree_refine_table(rows)))
 
 

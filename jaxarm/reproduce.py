@@ -23,7 +23,7 @@ from jaxarm.choices import LIMIT_UNITS
 from jaxarm.problem import certify, fitness, share_capacities
 from jaxarm.polish import refine
 from jaxarm.feasible import feasible_fraction
-from jaxarm.restarts import run_restarts
+from jaxarm.restarts import N_ITERS, N_PARTICLES, run_restarts
 from jaxarm.search import exact_text, solve
 from jaxarm.trajectory import Trajectory, min_duration
 
@@ -499,8 +499,9 @@ def compare_degrees_and_refine(problems, degrees=(6, 7, 8), n_restarts: int = 10
     the same after refining every feasible restart, and wall times (compilation included).
     """
     def restarts(problem, constraint):  # solve's restarts, without certifying its answer
-        return run_restarts(problem, evolution.resolve_method("A"), constraint, n_particles=20,
-                            n_iters=100, seed=seed, first_restart=0, n_restarts=n_restarts)
+        return run_restarts(problem, evolution.resolve_method("A"), constraint,
+                            n_particles=N_PARTICLES, n_iters=N_ITERS, seed=seed,
+                            first_restart=0, n_restarts=n_restarts)
 
     rows = []
     for problem in problems:

@@ -25,6 +25,9 @@ from jaxarm.constraints import constraint_index
 from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, vmapped_evaluate
 from jaxarm.programs import jit
 
+N_PARTICLES = 20  # the swarm size solve and escape_study use unless told
+N_ITERS = 100  # their iterations per restart
+
 
 class RestartOutcome(NamedTuple):
     """What each restart ended with (leading axis n_restarts)."""

@@ -13,7 +13,7 @@ import numpy as np
 from jaxarm import evolution, pso
 from jaxarm._validate import check_search, positive_int
 from jaxarm.problem import Problem, certify
-from jaxarm.restarts import RestartOutcome, run_restarts
+from jaxarm.restarts import N_ITERS, N_PARTICLES, RestartOutcome, run_restarts
 
 
 def exact_text(x) -> str:
@@ -191,9 +191,10 @@ def _plain(array) -> list:
     return array.tolist()
 
 
-def solve(problem: Problem, method: str | pso.PSOConfig = "A", *, n_particles: int = 20,
-          n_iters: int = 100, n_restarts: int = 1, seed: int = 0, constraint: str = "death",
-          init_particles=None, refine: bool | str = False) -> Result:
+def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
+          n_particles: int = N_PARTICLES, n_iters: int = N_ITERS, n_restarts: int = 1,
+          seed: int = 0, constraint: str = "death", init_particles=None,
+          refine: bool | str = False) -> Result:
     """Search the problem's free coefficients with PSO, ``n_restarts`` independent swarms at once.
 
     Restart i is seeded by ``fold_in(key(seed), i)``; its result does not depend on

@@ -20,7 +20,7 @@ from jaxarm import evolution, pso
 from jaxarm._validate import check_search, positive_int
 from jaxarm.choices import CONSTRAINTS, one_of
 from jaxarm.problem import Problem, fitness
-from jaxarm.restarts import RestartOutcome, is_compiled, run_restarts
+from jaxarm.restarts import N_ITERS, N_PARTICLES, RestartOutcome, is_compiled, run_restarts
 from jaxarm.stats import Comparison, fisher_exact, newcombe_interval, wilson_interval
 
 class Variant(NamedTuple):
@@ -239,7 +239,7 @@ class Study(NamedTuple):
 
 
 def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_seeds: int = 500,
-                 n_iters: int = 100, n_particles: int = 20, constraint: str = "death",
+                 n_iters: int = N_ITERS, n_particles: int = N_PARTICLES, constraint: str = "death",
                  seed: int = 0, chunk_size: int = 500, progress: bool | None = None) -> Study:
     """How often each method escapes zero fitness, over ``n_seeds`` independent seeds.
 

@@ -40,6 +40,11 @@ class WorldArrays(NamedTuple):
     polygon_valid: jnp.ndarray  # shape=(n_polygon_slots,), bool
 
 
+# The WorldArrays fields with one entry per polygon slot.
+_POLYGON_FIELDS = ("vertices", "normals", "extent_low", "extent_high", "edge_valid",
+                   "polygon_valid")
+
+
 def _capacity(count: int) -> int:
     """0 for none (the kernel for that shape is skipped), else the smallest power of two >=
     count: layouts of similar size share one program."""
@@ -365,15 +370,16 @@ def polygon_slots(sx, sy, ex, ey, world: WorldArrays, exact: bool = True) -> lis
             for k in range(world.vertices.shape[0])]
 
 
+def _map_polygon_slots(world: WorldArrays, change) -> WorldArrays:
+    """The world with ``change`` applied to each per-polygon-slot array (slots first)."""
+    return world._replace(**{name: change(getattr(world, name)) for name in _POLYGON_FIELDS})
+
+
 def one_polygon(world: WorldArrays, slot: int) -> WorldArrays:
     """Polygon slot ``slot`` of the world alone, as a world with one polygon slot and no
     circles."""
-    pick = lambda a: a[slot:slot + 1]  # noqa: E731
-    return world._replace(
-        circles=world.circles[:0], circle_valid=world.circle_valid[:0],
-        vertices=pick(world.vertices), normals=pick(world.normals),
-        extent_low=pick(world.extent_low), extent_high=pick(world.extent_high),
-        edge_valid=pick(world.edge_valid), polygon_valid=pick(world.polygon_valid))
+    alone = _map_polygon_slots(world, lambda a: a[slot:slot + 1])
+    return alone._replace(circles=world.circles[:0], circle_valid=world.circle_valid[:0])
 
 
 def pad_polygon_slots(world: WorldArrays, n_slots: int) -> WorldArrays:
@@ -388,9 +394,7 @@ def pad_polygon_slots(world: WorldArrays, n_slots: int) -> WorldArrays:
         a = jnp.asarray(a)  # packed worlds hold NumPy arrays (float64 before jnp converts them)
         return jnp.concatenate([a, jnp.zeros((missing,) + a.shape[1:], a.dtype)])
 
-    return world._replace(vertices=pad(world.vertices), normals=pad(world.normals),
-                          extent_low=pad(world.extent_low), extent_high=pad(world.extent_high),
-                          edge_valid=pad(world.edge_valid), polygon_valid=pad(world.polygon_valid))
+    return _map_polygon_slots(world, pad)
 
 
 def separation_xy(sx, sy, ex, ey, world: WorldArrays):

@@ -1,12 +1,15 @@
 """Gradient polish (``jaxarm.refine``): never worse, never colliding, shapes."""
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import jaxarm
-from jaxarm import published
+from jaxarm import collision, path, polish, published
+from jaxarm.programs import jit  # compiles faster than jax.jit on CPU
 
 
 @pytest.fixture(scope="module")
@@ -82,11 +85,6 @@ def test_refine_shares_programs_and_rows_do_not_depend_on_their_neighbours(
 def _surrogate_one_sample_at_a_time(problem, x, barrier_weight, margin, temperature):
     """The surrogate as folds over the samples (``path.run_fold``), as refine computed it
     before it took all samples at once."""
-    import jax
-    import jax.numpy as jnp
-
-    from jaxarm import collision, path
-
     arrays, spec = problem.arrays, problem.spec
 
     def add_barrier(total, sample):
@@ -105,11 +103,6 @@ def _surrogate_one_sample_at_a_time(problem, x, barrier_weight, margin, temperat
 
 @pytest.mark.parametrize("name", ["paper-case-2", "death-trap"])
 def test_the_surrogate_matches_a_fold_over_the_samples_and_its_gradient_autodiff(name):
-    import jax
-
-    from jaxarm import polish
-    from jaxarm.programs import jit  # compiles faster than jax.jit on CPU
-
     problem = jaxarm.load_scenario(name).replace(degree=7, n_samples=21)
     x = np.random.default_rng(3).uniform(-60, 60, (16, problem.n_free)).astype(np.float32)
     weight, margin, temperature = 2.0, 1.0, 0.5  # none of them refine's defaults

@@ -100,6 +100,7 @@ def test_calls_that_cannot_be_keyed_run_as_plain_jit(case2, monkeypatch, tmp_pat
     evaluate(case2.spec, case2.arrays, np.repeat(x, 2, axis=0))  # traced by jax.jit only
     assert len(list(tmp_path.iterdir())) == 1 and evaluate._cache_size() == 2
 
+
 def test_a_damaged_stored_trace_is_traced_again_and_replaced(case2, monkeypatch, tmp_path):
     monkeypatch.setattr(traces, "_directory", tmp_path)
     x = np.array([[66.7388, -28.1028, -9.8855], [0.0, 0.0, 0.0]], np.float32)
@@ -118,7 +119,6 @@ def test_a_damaged_stored_trace_is_traced_again_and_replaced(case2, monkeypatch,
     for a, b, c in zip(expected, first, again):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
         np.testing.assert_array_equal(np.asarray(a), np.asarray(c))
-
 
 
 def _doubled_on_the_host(v):
