@@ -1,13 +1,15 @@
 # `make demo` runs the main job, `make test` the test suite (everything not marked slow; what CI
 # runs), `make test-all` every test, `make docs` the API reference (docs/api/); each creates
-# .venv when missing. The tests run in two pytest-xdist workers: 4 min 37-44 s against 7 min
+# .venv when missing (`make test-oldest`: the quick suite on the oldest dependencies, in its
+# own .venv-oldest). The tests run in two pytest-xdist workers: 4 min 37-44 s against 7 min
 # in one process on 2 cores when last compared; pytest 2 to 4.5 min since (by machine); they share
 # one scratch compilation cache (tests/conftest.py; benchmarks/RESULTS.md, "Test suite time").
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
+OLDEST := .venv-oldest
 
-.PHONY: demo test test-all test-slow notebooks docs clean
+.PHONY: demo test test-all test-slow test-oldest notebooks docs clean
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +32,15 @@ test-all: $(VENV)/.installed-test
 test-slow: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q -n 2 -m slow
 
+# The quick suite on the oldest dependency versions pyproject.toml admits, in a fresh
+# .venv-oldest (tests/oldest-versions.txt).
+test-oldest:
+	rm -rf $(OLDEST)
+	$(PYTHON) -m venv $(OLDEST)
+	$(OLDEST)/bin/python -m pip install --quiet --upgrade pip
+	$(OLDEST)/bin/python -m pip install --quiet -c tests/oldest-versions.txt -e '.[test]'
+	$(OLDEST)/bin/python -m pytest -q -n 2 -m "not slow"
+
 notebooks: $(VENV)/.installed-test
 	$(BIN)/python notebooks/execute.py
 
@@ -37,4 +48,4 @@ docs: $(VENV)/.installed-test
 	$(BIN)/python docs/build_api.py
 
 clean:
-	rm -rf $(VENV) results docs/api .pytest_cache .hypothesis
+	rm -rf $(VENV) $(OLDEST) results docs/api .pytest_cache .hypothesis
