@@ -101,13 +101,22 @@ def _surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin, tem
 def _sum_over_samples(values):
     """(..., n_samples) -> (...,), added sample by sample in order: a reduction over the last
     axis is split differently for different batch sizes."""
-    return functools.reduce(operator.add, (values[..., i] for i in range(values.shape[-1])))
+    pieces = jax.lax.split(values, (1,) * values.shape[-1], axis=values.ndim - 1)
+    return functools.reduce(operator.add, pieces)[..., 0]
 
 
-def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, temperature):
-    """Refine one path; its candidates (x itself first) are evaluated at one place in the loop,
-    so the program holds one copy of the problem's check. optimizer None: the default."""
+def _refine_rows(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, temperature):
+    """Refine paths x (B, n_free), each row on its own; its candidates (x itself first) are
+    evaluated at one place in the loop, so the program holds one copy of the problem's check.
+    optimizer None: the default.
+
+    The loop runs on the whole batch: only the optimizer is mapped over the rows (so that one
+    with a norm or other reduction sees one row's parameters). A ``vmap`` of a one-row loop
+    gave the same bits but traced the loop's body twice more (JAX's scan batching rule), and
+    tracing took about as long as compiling (``benchmarks/RESULTS.md``).
+    """
     optimizer = DEFAULT_OPTIMIZER if optimizer is None else optimizer
+    update = jax.vmap(optimizer.update)
 
     def gradient(z):
         return surrogate_gradient(spec, arrays, z, barrier_weight, margin, temperature)
@@ -121,20 +130,21 @@ def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, tem
         best_fitness = jnp.where(first, candidate.fitness, best_fitness)
         accept = (candidate.violation == 0) & (candidate.fitness >= best_fitness) & feasible
         n_accepted = n_accepted + (accept & (candidate.fitness > best_fitness)).astype(jnp.int32)
-        best_x = jnp.where(accept, params, best_x)
+        best_x = jnp.where(accept[:, None], params, best_x)
         best_fitness = jnp.where(accept, candidate.fitness, best_fitness)
         # the last step's update is never evaluated: it keeps the loop's body in one piece
         grads = gradient(params)
         grads = jnp.where(jnp.isfinite(grads), grads, 0.0)
-        updates, state = optimizer.update(grads, state, params)
+        updates, state = update(grads, state, params)
         params = optax.apply_updates(params, updates)
         return (params, state, best_x, best_fitness, n_accepted, feasible, initial), best_fitness
 
-    zero = jnp.zeros((), x.dtype)
-    init = (x, optimizer.init(x), x, zero, jnp.zeros((), jnp.int32), jnp.asarray(False), zero)
+    zero = jnp.zeros(x.shape[:1], x.dtype)
+    init = (x, jax.vmap(optimizer.init)(x), x, zero, jnp.zeros(x.shape[:1], jnp.int32),
+            jnp.zeros(x.shape[:1], bool), zero)
     (_, _, best_x, best_fitness, n_accepted, _, initial), history = jax.lax.scan(
         body, init, jnp.arange(n_steps + 1))
-    return best_x, best_fitness, initial, n_accepted, history
+    return best_x, best_fitness, initial, n_accepted, history.T
 
 
 # One default instance: the optimizer is a static argument, so reusing it reuses the program.
@@ -142,10 +152,7 @@ def _refine_one(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, tem
 DEFAULT_OPTIMIZER = optax.adam(0.2)
 REFINE_BLOCK = 16  # the smallest padded batch
 
-_compiled_refine = jit(
-    jax.vmap(_refine_one, in_axes=(None, None, 0, None, None, None, None, None)),
-    static_argnums=(0, 3, 4), storable=True,
-)
+_compiled_refine = jit(_refine_rows, static_argnums=(0, 3, 4), storable=True)
 
 
 def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weight: float = 1.0,

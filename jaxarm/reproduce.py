@@ -513,17 +513,20 @@ def compare_degrees_and_refine(problems, degrees=(6, 7, 8), n_restarts: int = 10
             pso_seconds = time.perf_counter() - began
             feasible = rules.feasible
             began = time.perf_counter()
-            polished = refine(higher, rules.best_x[feasible])
+            # every restart, so that each degree's refine is one program whatever the number
+            # of feasible restarts (an infeasible one comes back unchanged and is dropped)
+            polished = refine(higher, rules.best_x)
             refine_seconds = time.perf_counter() - began
             pso_fitness = rules.best_fitness[feasible]
+            refined = polished.fitness[feasible]
             rows.append({
                 "problem": problem.name, "degree": degree, "n_free": higher.n_free,
                 "escape_death": float(np.mean(death.escape_iter >= 0)),
                 "escape_feasibility": float(np.mean(rules.escape_iter >= 0)),
                 "best_pso": float(pso_fitness.max(initial=0.0)),
-                "best_refined": float(np.max(polished.fitness, initial=0.0)),
+                "best_refined": float(np.max(refined, initial=0.0)),
                 "median_pso": float(np.median(pso_fitness)) if feasible.any() else 0.0,
-                "median_refined": float(np.median(polished.fitness)) if feasible.any() else 0.0,
+                "median_refined": float(np.median(refined)) if feasible.any() else 0.0,
                 "pso_seconds": pso_seconds, "refine_seconds": refine_seconds,
             })
     return rows

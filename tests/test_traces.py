@@ -84,7 +84,7 @@ def test_calls_that_cannot_be_keyed_run_as_plain_jit(case2, monkeypatch, tmp_pat
     assert traces.directory() == tmp_path and traces.usable()
     x = np.array([[66.7388, -28.1028, -9.8855]], np.float32)
     sgd = optax.sgd(0.01)
-    assert traces.split_call(polish._refine_one, frozenset({"optimizer"}),
+    assert traces.split_call(polish._refine_rows, frozenset({"optimizer"}),
                              (None, None, x, sgd, 3, 1.0, 0.5, 0.25), {}) is None
     assert traces.split_call(problem_lib.evaluate, frozenset({"spec"}),
                              (case2.spec, case2.arrays, "not an array"), {}) is None
