@@ -213,7 +213,7 @@ class Swarm(NamedTuple):
     - ``ask(key, state) -> (state, x)``: the next paths;
     - ``measure``: paths (n, n_dims) -> ``Measured``.
 
-    ``restarts.run_restart`` runs any optimiser given this way and calls ``measure`` at one
+    ``restarts.run_restarts_of`` runs any optimiser given this way and calls ``measure`` at one
     place, so a compiled search holds one copy of the problem's check: the certified check
     is most of a search program, and with three copies (initial swarm, update, final best) the
     certified search took 10.4 s to compile against 5.8 s with one (paper-case-1, by hand,

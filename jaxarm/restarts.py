@@ -1,14 +1,14 @@
 """Independent restarts of a swarm in one compiled program: vmapped, scanned, sharded.
 
-Restarts are vmapped (and sharded over all devices when there are several), iterations run in
-``lax.scan``. Restart i draws everything from ``fold_in(key(seed), i)`` (and iteration t from
+Restarts run side by side, the swarm's functions vmapped over them (and sharded over all
+devices when there are several); iterations run in ``lax.scan``. Restart i draws everything from ``fold_in(key(seed), i)`` (and iteration t from
 ``fold_in`` of that with t), so its result does not depend on how many restarts run beside it or
 how they are chunked. The compiled program is specialised only on sizes and modes
 (``ProblemSpec``, particles, iterations, restarts and the swarm's rules); angles, obstacles,
 PSO coefficients, the constraint rule, the init range and the seed are data, so a new scenario or
 preset reuses it.
 
-``run_restart`` knows nothing about PSO: any optimiser given as a ``pso.Swarm`` (ask and tell
+``run_restarts_of`` knows nothing about PSO: any optimiser given as a ``pso.Swarm`` (ask and tell
 functions and the measurement) whose info is a ``pso.StepInfo`` runs in the same loop.
 """
 
@@ -54,41 +54,54 @@ class RestartOutcome(NamedTuple):
 
 
 def run_restart(key, swarm: pso.Swarm, n_iters: int) -> RestartOutcome:
-    """One restart: iteration 0 then ``n_iters`` updates, tracking escape and the best fitness.
+    """One restart (``run_restarts_of`` with one key): fields without the leading axis."""
+    return jax.tree.map(lambda a: a[0], run_restarts_of(key[None], swarm, n_iters))
 
-    The swarm's paths are measured at one place (in the loop's body), so a compiled program
-    holds one copy of the measurement.
+
+def run_restarts_of(keys, swarm: pso.Swarm, n_iters: int) -> RestartOutcome:
+    """Restarts, one per key: iteration 0 then ``n_iters`` updates, tracking escape and the
+    best fitness.
+
+    The loop runs on all restarts at once, the swarm's functions mapped over them (a ``vmap``
+    of a one-restart loop gave the same bits but traced the loop's body twice more, in JAX's
+    scan batching rule). The swarm's paths are measured at one place (in the loop's body), so
+    a compiled program holds one copy of the measurement.
 
     Args:
-      key: this restart's key; ``start`` gets ``fold_in(key, 0)``, the ask of update t
-        ``fold_in(key, t)``.
-      swarm: the optimiser.
+      keys: one key per restart, shape (n_restarts,); a restart's ``start`` gets
+        ``fold_in(key, 0)``, the ask of update t ``fold_in(key, t)``.
+      swarm: the optimiser (its functions see one restart).
       n_iters: updates (static).
 
     Returns:
-      ``RestartOutcome`` of one restart: best_x (n_free,), its fitness and violation as the
-      swarm measured them (), escape_iter (), escape_x (n_free,), history (n_iters + 1,).
+      ``RestartOutcome``: best_x (n_restarts, n_free), its fitness and violation as the swarm
+      measured them (n_restarts,), escape_iter (n_restarts,), escape_x (n_restarts, n_free),
+      history (n_restarts, n_iters + 1).
     """
-    state, x = swarm.start(jax.random.fold_in(key, 0))
-    zero = jnp.zeros((), x.dtype)
-    nan = jnp.full(x.shape[-1:], jnp.nan, x.dtype)
+    start, ask, measure = jax.vmap(swarm.start), jax.vmap(swarm.ask), jax.vmap(swarm.measure)
+    tell = jax.vmap(swarm.tell, in_axes=(0, 0, 0, None))
+    keys_at = jax.vmap(jax.random.fold_in, in_axes=(0, None))
+    state, x = start(keys_at(keys, 0))
+    zero = jnp.zeros(keys.shape, x.dtype)
+    nan = jnp.full(keys.shape + x.shape[-1:], jnp.nan, x.dtype)
     nothing_yet = pso.StepInfo(global_position=nan, global_fitness=zero, global_violation=zero,
-                               global_score=zero, n_feasible=jnp.zeros((), jnp.int32))
+                               global_score=zero, n_feasible=jnp.zeros(keys.shape, jnp.int32))
 
     def body(carry, iteration):
         state, x, _, escape_iter, escape_x = carry
-        state, info = swarm.tell(state, x, swarm.measure(x), iteration)
+        state, info = tell(state, x, measure(x), iteration)
         escaped_now = (escape_iter < 0) & (info.n_feasible > 0)
         escape_iter = jnp.where(escaped_now, iteration, escape_iter)
-        escape_x = jnp.where(escaped_now, info.global_position, escape_x)
+        escape_x = jnp.where(escaped_now[:, None], info.global_position, escape_x)
         # the last iteration's ask is not measured: it keeps the loop's body in one piece
-        state, x = swarm.ask(jax.random.fold_in(key, iteration + 1), state)
+        state, x = ask(keys_at(keys, iteration + 1), state)
         return (state, x, info, escape_iter, escape_x), info.global_fitness
 
     (_, _, info, escape_iter, escape_x), history = jax.lax.scan(
-        body, (state, x, nothing_yet, jnp.int32(-1), nan), jnp.arange(n_iters + 1))
+        body, (state, x, nothing_yet, jnp.full(keys.shape, -1, jnp.int32), nan),
+        jnp.arange(n_iters + 1))
     return RestartOutcome(info.global_position, info.global_fitness, info.global_violation,
-                          escape_iter, escape_x, history)
+                          escape_iter, escape_x, history.T)
 
 
 def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOParams,
@@ -127,8 +140,8 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
                           n_iters=n_iters, init_particles=init_particles, n_given=n_given,
                           constraint=constraint)
 
-    return jax.vmap(lambda restart: run_restart(
-        jax.random.fold_in(jax.random.key(seed), restart), swarm, n_iters))(restart_ids)
+    keys = jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.key(seed), restart_ids)
+    return run_restarts_of(keys, swarm, n_iters)
 
 
 compiled_search = jit(
