@@ -1,12 +1,12 @@
 """Independent restarts of a swarm in one compiled program: vmapped, scanned, sharded.
 
-Restarts run side by side, the swarm's functions vmapped over them (and sharded over all
-devices when there are several); iterations run in ``lax.scan``. Restart i draws everything from ``fold_in(key(seed), i)`` (and iteration t from
-``fold_in`` of that with t), so its result does not depend on how many restarts run beside it or
-how they are chunked. The compiled program is specialised only on sizes and modes
-(``ProblemSpec``, particles, iterations, restarts and the swarm's rules); angles, obstacles,
-PSO coefficients, the constraint rule, the init range and the seed are data, so a new scenario or
-preset reuses it.
+Restarts run side by side, the swarm's functions vmapped over them (and sharded over all devices
+when there are several); iterations run in ``lax.scan``. Restart i draws everything from
+``fold_in(key(seed), i)`` (and iteration t from ``fold_in`` of that with t), so its result does
+not depend on how many restarts run beside it or how they are chunked. The compiled program is
+specialised only on sizes and modes (``ProblemSpec``, particles, iterations, restarts and the
+swarm's rules); angles, obstacles, PSO coefficients, the constraint rule, the init range and the
+seed are data, so a new scenario or preset reuses it.
 
 ``run_restarts_of`` knows nothing about PSO: any optimiser given as a ``pso.Swarm`` (ask and tell
 functions and the measurement) whose info is a ``pso.StepInfo`` runs in the same loop.
