@@ -68,8 +68,9 @@ def run_restarts_of(keys, swarm: pso.Swarm, n_iters: int) -> RestartOutcome:
     a compiled program holds one copy of the measurement.
 
     Args:
-      keys: one key per restart, shape (n_restarts,); a restart's ``start`` gets
-        ``fold_in(key, 0)``, the ask of update t ``fold_in(key, t)``.
+      keys: one key per restart, shape (n_restarts,) (or raw uint32 keys, (n_restarts, 2));
+        a restart's ``start`` gets ``fold_in(key, 0)``, the ask of update t
+        ``fold_in(key, t)``.
       swarm: the optimiser (its functions see one restart).
       n_iters: updates (static).
 
@@ -82,10 +83,11 @@ def run_restarts_of(keys, swarm: pso.Swarm, n_iters: int) -> RestartOutcome:
     tell = jax.vmap(swarm.tell, in_axes=(0, 0, 0, None))
     keys_at = jax.vmap(jax.random.fold_in, in_axes=(0, None))
     state, x = start(keys_at(keys, 0))
-    zero = jnp.zeros(keys.shape, x.dtype)
-    nan = jnp.full(keys.shape + x.shape[-1:], jnp.nan, x.dtype)
+    batch = x.shape[:1]  # (n_restarts,): typed keys or raw uint32 ones (n_restarts, 2)
+    zero = jnp.zeros(batch, x.dtype)
+    nan = jnp.full(batch + x.shape[-1:], jnp.nan, x.dtype)
     nothing_yet = pso.StepInfo(global_position=nan, global_fitness=zero, global_violation=zero,
-                               global_score=zero, n_feasible=jnp.zeros(keys.shape, jnp.int32))
+                               global_score=zero, n_feasible=jnp.zeros(batch, jnp.int32))
 
     def body(carry, iteration):
         state, x, _, escape_iter, escape_x = carry
@@ -98,7 +100,7 @@ def run_restarts_of(keys, swarm: pso.Swarm, n_iters: int) -> RestartOutcome:
         return (state, x, info, escape_iter, escape_x), info.global_fitness
 
     (_, _, info, escape_iter, escape_x), history = jax.lax.scan(
-        body, (state, x, nothing_yet, jnp.full(keys.shape, -1, jnp.int32), nan),
+        body, (state, x, nothing_yet, jnp.full(batch, -1, jnp.int32), nan),
         jnp.arange(n_iters + 1))
     return RestartOutcome(info.global_position, info.global_fitness, info.global_violation,
                           escape_iter, escape_x, history.T)

@@ -131,6 +131,17 @@ def test_any_optimiser_given_as_ask_and_tell_runs_in_the_restart_loop():
     assert escape_iter >= 0  # P(no sample with x[0] > 0.5 in 126) = 0.75 ** 126
     escape_fitness = -np.sum((np.asarray(outcome.escape_x) - 0.3) ** 2)
     assert escape_fitness == pytest.approx(float(history[escape_iter]))
+    # several restarts in one loop: each as it runs alone, with typed or raw keys
+    keys = jax.random.split(jax.random.key(1), 3)
+    run_all = jax.jit(restarts.run_restarts_of, static_argnums=(1, 2))
+    together = run_all(keys, swarm, 20)
+    assert together.history.shape == (3, 21) and together.best_x.shape == (3, 2)
+    raw = run_all(jax.random.key_data(keys), swarm, 20)
+    for i in range(3):
+        alone = run(keys[i], swarm, 20)
+        for field, value in alone._asdict().items():
+            np.testing.assert_array_equal(getattr(together, field)[i], value)
+            np.testing.assert_array_equal(getattr(raw, field)[i], value)
 
 
 def test_two_processes_return_what_one_process_returns(case2, tmp_path):
