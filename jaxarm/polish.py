@@ -139,9 +139,10 @@ def _refine_rows(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, te
         params = optax.apply_updates(params, updates)
         return (params, state, best_x, best_fitness, n_accepted, feasible, initial), best_fitness
 
-    zero = jnp.zeros(x.shape[:1], x.dtype)
-    init = (x, jax.vmap(optimizer.init)(x), x, zero, jnp.zeros(x.shape[:1], jnp.int32),
-            jnp.zeros(x.shape[:1], bool), zero)
+    rows = x.shape[:1]
+    zero = jnp.zeros(rows, x.dtype)
+    init = (x, jax.vmap(optimizer.init)(x), x, zero, jnp.zeros(rows, jnp.int32),
+            jnp.zeros(rows, bool), zero)
     (_, _, best_x, best_fitness, n_accepted, _, initial), history = jax.lax.scan(
         body, init, jnp.arange(n_steps + 1))
     return best_x, best_fitness, initial, n_accepted, history.T

@@ -3,6 +3,7 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optax
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -69,8 +70,6 @@ def test_refine_of_no_paths_is_empty(case2):
 
 def test_refine_shares_programs_and_rows_do_not_depend_on_their_neighbours(
         feasible_case2_paths, case2):
-    from jaxarm import polish
-
     rows = np.asarray(feasible_case2_paths)
     few = jaxarm.refine(case2, rows[:3], n_steps=5)
     before = polish._compiled_refine._cache_size()
@@ -82,12 +81,9 @@ def test_refine_shares_programs_and_rows_do_not_depend_on_their_neighbours(
     np.testing.assert_array_equal(wide.x[:3], few.x)
 
 
-
 def test_an_optimizer_with_a_global_norm_sees_one_row_at_a_time(feasible_case2_paths, case2):
     """refine's loop runs on the whole batch, but the optimizer is mapped over the rows: a
     norm clip must clip each path by its own gradient's norm, not the batch's."""
-    import optax
-
     clipped = optax.chain(optax.clip_by_global_norm(1e-3), optax.sgd(1.0))
     rows = np.asarray(feasible_case2_paths)[:3]
     together = jaxarm.refine(case2, rows, n_steps=5, optimizer=clipped)
@@ -96,6 +92,7 @@ def test_an_optimizer_with_a_global_norm_sees_one_row_at_a_time(feasible_case2_p
         alone = jaxarm.refine(case2, rows[i:i + 1], n_steps=5, optimizer=clipped)
         np.testing.assert_array_equal(alone.x[0], together.x[i])
         np.testing.assert_array_equal(alone.history[0], together.history[i])
+
 
 def _surrogate_one_sample_at_a_time(problem, x, barrier_weight, margin, temperature):
     """The surrogate as folds over the samples (``path.run_fold``), as refine computed it
