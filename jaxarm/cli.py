@@ -190,6 +190,10 @@ def build_parser() -> argparse.ArgumentParser:
                            help="seeds per suite scenario (200; 50 with --quick)")
     reproduce.add_argument("--degrees", type=_degrees, default=(6, 7, 8),
                            help="path degrees compared beyond the paper (6,7,8)")
+    reproduce.add_argument("--workers", type=_positive,
+                           help="threads running the report's sections side by side (default: "
+                                "the cores available, at most 5; 1 under jax.distributed); "
+                                "results do not depend on it")
     return parser
 
 
@@ -381,7 +385,7 @@ def _reproduce(args) -> None:
 
     suite = [name.strip() for name in args.suite.split(",")] if args.suite else None
     reproduce_paper(args.out, quick=args.quick, n_seeds=args.seeds, suite=suite,
-                    suite_seeds=args.suite_seeds, degrees=args.degrees)
+                    suite_seeds=args.suite_seeds, degrees=args.degrees, workers=args.workers)
 
 
 COMMANDS = {"scenarios": _scenarios, "solve": _solve, "study": _study,

@@ -32,20 +32,29 @@ from jaxarm.choices import COLLISION_MODES, one_of
 from jaxarm.programs import jit
 
 
-@functools.partial(jit, static_argnums=0, storable=True)
-def _posture_depth(lengths: tuple, world: WorldArrays, theta):
+@functools.partial(jit, storable=True)
+def _posture_depth(lengths, world: WorldArrays, theta):
     """Penetration of every link into every slot at one posture (n_joints,) -> (n_joints, n_slots).
 
     Compiled: a Problem checks its start and goal on construction, and op by op that took
-    about 0.1 s per problem (30 thin-wall problems built by hand: 3.6 s, 0.56 s compiled)."""
+    about 0.1 s per problem (30 thin-wall problems built by hand: 3.6 s, 0.56 s compiled).
+    The lengths (n_joints,) are data and the world is packed at ``_posture_capacities``, so
+    that problems of as many joints share the program."""
     return collision_lib.penetration(lengths, world, theta)
 
 
-@functools.partial(jit, static_argnums=0, storable=True)
-def _posture_separation(lengths: tuple, world: WorldArrays, theta):
+@functools.partial(jit, storable=True)
+def _posture_separation(lengths, world: WorldArrays, theta):
     """Exact separation (cm) of every link from every slot at one posture, (n_joints, n_slots)."""
     return jnp.stack([world_lib.separation_xy(*link, world)
                       for link in link_endpoints(lengths, list(theta))])
+
+
+def _posture_capacities(capacities: tuple[int, int, int]) -> tuple[int, int, int]:
+    """Slots for the posture checks: at least 4 circles, 4 polygons and 8 vertices, so that
+    the shipped scenes of one arm share one program (it checks a single posture)."""
+    circles, polygons, vertices = capacities
+    return max(circles, 4), max(polygons, 4), max(vertices, 8)
 
 
 class ProblemSpec(NamedTuple):
@@ -175,20 +184,22 @@ class Problem:
 
     def _check_posture(self, which: str) -> None:
         theta = np.asarray(getattr(self, which), dtype=jnp.result_type(float))
-        depth = np.asarray(_posture_depth(self.arm.lengths, self.arrays.world, theta))
+        lengths = np.asarray(self.arm.lengths, dtype=theta.dtype)
+        capacities = _posture_capacities(self.capacities)
+        world = self.world.pack(capacities)
+        depth = np.asarray(_posture_depth(lengths, world, theta))
         if np.any(depth > 0):
             link, slot = np.unravel_index(int(np.argmax(depth > 0)), depth.shape)
-            name = self.world.slot_names(self.capacities)[slot]
+            name = self.world.slot_names(capacities)[slot]
             raise ValueError(
                 f"{which} posture {list(getattr(self, which))} collides: link {link + 1} "
                 f"overlaps {name} by {depth[link, slot]:.4g} cm"
             )
         if self.margin > 0:
-            separation = np.asarray(
-                _posture_separation(self.arm.lengths, self.arrays.world, theta))
+            separation = np.asarray(_posture_separation(lengths, world, theta))
             if np.any(separation < self.margin):
                 link, slot = np.unravel_index(int(np.argmin(separation)), separation.shape)
-                name = self.world.slot_names(self.capacities)[slot]
+                name = self.world.slot_names(capacities)[slot]
                 raise ValueError(
                     f"{which} posture {list(getattr(self, which))} breaks margin "
                     f"{self.margin:g} cm: link {link + 1} is {separation[link, slot]:.4g} cm "

@@ -12,6 +12,7 @@ bits. Other backends keep XLA's defaults (untested there).
 from __future__ import annotations
 
 import functools
+import threading
 
 import jax
 
@@ -53,22 +54,28 @@ def _at_top_level(args) -> bool:
 
 class _Program:
     """A ``jax.jit`` made at its first use, for the backend in use then; with
-    ``jaxarm.traces`` on, top-level calls go through stored traced programs instead."""
+    ``jaxarm.traces`` on, top-level calls go through stored traced programs instead.
+
+    Safe to call from several threads: a program is made once (``jax.jit`` itself compiles a
+    program once when threads call it together)."""
 
     def __init__(self, fun, options: dict, storable: bool = False):
         self._fun, self._options, self._jitted, self._storable = fun, options, None, storable
         self._nested = jax.jit(fun, **options)
         self._stored = {}  # Call.memo_key() -> traces.Stored, or None where export refused it
+        self._lock = threading.Lock()  # guards _jitted and _stored
+        self._making = {}  # Call.memo_key() -> a lock held while that stored program is made
         functools.update_wrapper(self, fun)
 
     def _compiler_options(self):
         return CPU_COMPILER_OPTIONS if jax.default_backend() == "cpu" else None
 
     def _compiled(self):
-        if self._jitted is None:
-            self._jitted = jax.jit(self._fun, compiler_options=self._compiler_options(),
-                                   **self._options)
-        return self._jitted
+        with self._lock:
+            if self._jitted is None:
+                self._jitted = jax.jit(self._fun, compiler_options=self._compiler_options(),
+                                       **self._options)
+            return self._jitted
 
     @functools.cached_property
     def _static_names(self) -> frozenset:
@@ -86,22 +93,32 @@ class _Program:
                 if self._storable and traces.usable() else None)
         if call is None:
             return self._compiled()(*args, **kwargs)
-        key = call.memo_key()
-        if key not in self._stored:
-            label = f"{self._fun.__module__}.{self._fun.__qualname__} {self._options!r}"
-            self._stored[key] = traces.stored_program(self._fun, label, call,
-                                                      self._compiler_options())
-        stored = self._stored[key]
+        stored = self._stored_program(call)
         if stored is None:  # jax.export refused it
             return self._compiled()(*args, **kwargs)
         return jax.tree.unflatten(stored.out_tree, stored.call(*call.leaves))
 
+    def _stored_program(self, call: traces.Call) -> traces.Stored | None:
+        """The stored program for ``call``, made by the first thread that asks for it."""
+        key = call.memo_key()
+        with self._lock:
+            making = self._making.setdefault(key, threading.Lock())
+        with making:  # a second thread asking for the same program waits for the first
+            if key not in self._stored:
+                label = f"{self._fun.__module__}.{self._fun.__qualname__} {self._options!r}"
+                self._stored[key] = traces.stored_program(self._fun, label, call,
+                                                          self._compiler_options())
+            return self._stored[key]
+
     def _cache_size(self) -> int:
         """Programs compiled so far: ``jax.jit``'s own and those run from stored traces."""
-        return self._compiled()._cache_size() + sum(s is not None for s in self._stored.values())
+        jitted = self._compiled()
+        with self._lock:
+            stored = list(self._stored.values())
+        return jitted._cache_size() + sum(s is not None for s in stored)
 
     def __getattr__(self, name: str):  # trace, lower, ...
         if name.startswith("__") or name in ("_fun", "_options", "_jitted", "_nested", "_stored",
-                                                   "_storable"):
+                                                   "_storable", "_lock", "_making"):
             raise AttributeError(name)
         return getattr(self._compiled(), name)

@@ -6,12 +6,15 @@ output folder. Everything is seeded: the same command gives the same numbers.
 
 from __future__ import annotations
 
+import collections
 import datetime
 import math
+import os
 import pathlib
 import platform
+import threading
 import time
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import jax
 import numpy as np
@@ -53,7 +56,7 @@ class _Report:
 def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None = None,
                     suite: list[str] | None = None, suite_seeds: int | None = None,
                     degrees=(6, 7, 8), log: Callable[[str], None] = print,
-                    progress: bool | None = None):
+                    progress: bool | None = None, workers: int | None = None):
     """Run the paper's experiments and the suite study; write ``out_dir/report.md``.
 
     Args:
@@ -65,6 +68,11 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
       degrees: path degrees compared in the beyond-the-paper section.
       log: where progress lines go.
       progress: progress bars (default: when stderr is a terminal).
+      workers: threads running the report's five sections side by side (default: the cores
+        this process may use, at most 5; 1 when JAX has several devices or processes, whose
+        programs must start in the same order everywhere). Results do not depend on it; times
+        do. One section's compilation overlaps another's run: on 2 cores the quick report took
+        ... (``benchmarks/RESULTS.md``).
 
     Returns:
       The path of the report.
@@ -79,11 +87,12 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     report = _Report(out)
-    stage = _stages(log, began, total=5)
+    workers = _section_workers(workers)
     chunk = _shared_chunk(n_seeds, suite_seeds)
     # The paper's tables use the paper's check: collision-free at the 101 samples of r.
-    case1, case2, case3 = (scenarios.load_scenario(f"paper-case-{i}", collision="sampled")
-                           for i in (1, 2, 3))
+    case1, case2, case3, death_trap = (
+        scenarios.load_scenario(name, collision="sampled")
+        for name in ("paper-case-1", "paper-case-2", "paper-case-3", "death-trap"))
     report.add(
         "# jaxarm: reproduction of Machmudah & Parman (2013)", "",
         f"Generated {datetime.datetime.now():%Y-%m-%d %H:%M} by `jaxarm reproduce-paper"
@@ -97,34 +106,138 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
         "(see *How the scenarios were reconstructed* below). Fitness values of published "
         "coefficient sets do not depend on the obstacles; feasibility verdicts and escape rates "
         "do.", "",
+        f"Times include compilation. {_workers_sentence(workers)}", "",
     )
 
-    stage(f"case 1: escape study, {n_seeds} seeds x 6 methods")
-    methods = ["A", "B", "C", "A:feasibility", "B:feasibility", "C:feasibility"]
-    case1_study = study.escape_study(case1, methods, n_seeds=n_seeds, chunk_size=chunk,
-                                     progress=progress)
-    (out / "case1_study.json").write_text(case1_study.to_json())
-    (out / "case1_study.csv").write_text(case1_study.to_csv())
-    _table_2(report, case1_study)
-    _reconstruction_section(report, case1, case2, case1_study)
-    _escape_section(report, case1, case1_study)
-    stage("cases II and III (Table 3), Tables 4-6")
-    _table_3(report, case2, case3)
-    _tables_4_5(report, case2)
-    _table_6(report, case2)
-    stage(f"beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine")
-    report.add(*beyond_paper_section((case1, case2, case3), 20 if quick else 100, degrees))
-    stage(f"constraint rules compared on case 1 and death-trap, {n_seeds} seeds each")
-    _rules_section(report, [case1, scenarios.load_scenario("death-trap", collision="sampled")],
-                   n_seeds, chunk, progress)
-    _feasible_set_section(report, case2)
-    _trajectory_section(report, case2)
-    stage(f"shipped suite: {len(suite)} scenarios x {suite_seeds} seeds x 2 methods")
-    _suite(report, suite, suite_seeds, chunk, progress)
+    def case_1(part: _Report) -> None:
+        methods = ["A", "B", "C", "A:feasibility", "B:feasibility", "C:feasibility"]
+        case1_study = study.escape_study(case1, methods, n_seeds=n_seeds, chunk_size=chunk,
+                                         progress=progress)
+        (out / "case1_study.json").write_text(case1_study.to_json())
+        (out / "case1_study.csv").write_text(case1_study.to_csv())
+        _table_2(part, case1_study)
+        _reconstruction_section(part, case1, case2, case1_study)
+        _escape_section(part, case1, case1_study)
+
+    def tables_3_to_6(part: _Report) -> None:
+        _table_3(part, case2, case3)
+        _tables_4_5(part, case2)
+        _table_6(part, case2)
+
+    def rules_and_case_2(part: _Report) -> None:
+        _rules_section(part, [case1, death_trap], n_seeds, chunk, progress)
+        _feasible_set_section(part, case2)
+        _trajectory_section(part, case2)
+
+    sections = [
+        _Section(f"case 1: escape study, {n_seeds} seeds x 6 methods", case_1),
+        _Section("cases II and III (Table 3), Tables 4-6", tables_3_to_6),
+        _Section(f"beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine",
+                 lambda part: part.add(*beyond_paper_section(
+                     (case1, case2, case3), 20 if quick else 100, degrees)), long=True),
+        _Section(f"constraint rules compared on case 1 and death-trap, {n_seeds} seeds each",
+                 rules_and_case_2),
+        _Section(f"shipped suite: {len(suite)} scenarios x {suite_seeds} seeds x 2 methods",
+                 lambda part: _suite(part, suite, suite_seeds, chunk, progress), long=True),
+    ]
+    for part in _run_sections(sections, out, workers, log, began):
+        report.add(*part.lines)
     report.add(f"Total time: {time.perf_counter() - began:.0f} s.")
     path = report.write()
     log(f"report written to {path} ({time.perf_counter() - began:.0f} s)")
     return path
+
+
+class _Section(NamedTuple):
+    """One section of the report: a stage line, and what writes its lines and figures."""
+
+    title: str
+    fill: Callable[[_Report], None]
+    long: bool = False  # started first when sections run side by side
+
+
+def _section_workers(workers: int | None) -> int:
+    """Threads for the sections: ``workers``, or the default (``reproduce_paper``)."""
+    single = jax.process_count() == 1 and jax.device_count() == 1
+    if workers is None:
+        cores = getattr(os, "process_cpu_count", os.cpu_count)() or 1
+        return min(cores, 5) if single else 1
+    workers = positive_int("workers", workers)
+    if workers > 1 and not single:
+        raise ValueError(f"workers must be 1 with {jax.process_count()} processes and "
+                         f"{jax.device_count()} devices (their programs must start in the same "
+                         f"order everywhere), got {workers}")
+    return workers
+
+
+def _workers_sentence(workers: int) -> str:
+    if workers == 1:
+        return "The report's sections ran one after another (`--workers 1`)."
+    return (f"The report's sections ran side by side on {workers} threads (`--workers`), "
+            "sharing the cores, so each time is longer than that work alone; no result "
+            "depends on it.")
+
+
+def _run_sections(sections: list, out: pathlib.Path, workers: int,
+                  log: Callable[[str], None], began: float) -> list:
+    """Each section filled into a ``_Report`` of its own; the reports in the sections' order.
+
+    With ``workers`` > 1 the sections run on that many threads, the long ones first, and each
+    logs when it starts and ends; the first error is raised once the main thread sees it (the
+    other threads finish the section they are in: they are daemons, so an exiting process
+    does not wait for them). Sections must not depend on one another.
+    """
+    parts = [_Report(out) for _ in sections]
+    log = _one_line_at_a_time(log)
+    stage = _stages(log, began, total=len(sections))
+
+    def run(index: int) -> None:
+        stage(sections[index].title)
+        sections[index].fill(parts[index])
+        if workers > 1:
+            log(f"[{time.perf_counter() - began:.0f} s] done: {sections[index].title}")
+
+    if workers == 1:
+        for index in range(len(sections)):
+            run(index)
+        return parts
+    waiting = collections.deque(sorted(range(len(sections)), key=lambda i: not sections[i].long))
+    errors, lock = [], threading.Lock()
+
+    def worker() -> None:
+        while True:
+            with lock:
+                if errors or not waiting:
+                    return
+                index = waiting.popleft()
+            try:
+                run(index)
+            except BaseException as error:  # noqa: BLE001 - raised again in the main thread
+                with lock:
+                    errors.append(error)
+                return
+
+    threads = [threading.Thread(target=worker, name=f"jaxarm-report-{n}", daemon=True)
+               for n in range(min(workers, len(sections)))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        while thread.is_alive() and not errors:
+            thread.join(0.1)  # in short waits, so that Ctrl-C reaches the main thread
+    if errors:
+        raise errors[0]
+    return parts
+
+
+def _one_line_at_a_time(log: Callable[[str], None]) -> Callable[[str], None]:
+    """``log`` for several threads: ``print``'s text and newline are two writes."""
+    lock = threading.Lock()
+
+    def locked(text: str) -> None:
+        with lock:
+            log(text)
+
+    return locked
 
 
 def _stages(log: Callable[[str], None], began: float, total: int) -> Callable[[str], None]:

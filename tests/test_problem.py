@@ -257,3 +257,17 @@ def test_share_capacities_gives_each_arm_its_largest_slots_and_one_search_progra
     assert not is_compiled(trap, jaxarm.PRESETS["A"], 8, 12, 3)
     with pytest.raises(ValueError, match=r"problems\[1\] must be a jaxarm.Problem"):
         jaxarm.share_capacities([case1, "death-trap"])
+
+
+def test_problems_of_one_arm_share_the_posture_check_program():
+    """Constructing a problem checks its start and goal in a compiled program; arms of as many
+    joints and worlds of up to 4 circles and 4 polygons share it (lengths are data)."""
+    from jaxarm import problem as problem_lib
+
+    before = problem_lib._posture_depth._cache_size()
+    for n_circles, lengths in ((1, (21.0, 22.0, 23.0)), (2, (31.0, 12.0, 13.0)), (3, ARM.lengths)):
+        world = jaxarm.World(circles=[(200.0 + 10 * i, 0.0, 2.0) for i in range(n_circles)],
+                             boxes=[((-90.0, 80.0), (-80.0, 90.0))] * (n_circles % 2))
+        jaxarm.Problem(arm=jaxarm.Arm(lengths), start=[0.0, 0.5, 0.5], goal=[1.5, 0.5, 0.5],
+                       world=world)
+    assert problem_lib._posture_depth._cache_size() - before <= 1

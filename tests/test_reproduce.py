@@ -1,8 +1,10 @@
 """``reproduce-paper`` (``jaxarm.reproduce``): every table of the report."""
 
 import re
+import threading
 import time
 
+import jax
 import pytest
 
 from jaxarm import cli, reproduce
@@ -20,7 +22,7 @@ def test_cli_reproduce_paper_writes_a_report_with_every_table(capsys, tmp_path):
                            "--suite", "paper-case-2,open-space", "--suite-seeds", "4",
                            "--degrees", "6")
     assert code == 0 and "report written" in out
-    stages = [line for line in out.splitlines() if line.startswith("[")]
+    stages = [line for line in out.splitlines() if re.match(r"\[\d/5, ", line)]
     assert [line[:4] for line in stages] == ["[1/5", "[2/5", "[3/5", "[4/5", "[5/5"]
     report = (tmp_path / "report.md").read_text()
     for heading in ("Table 2", "Escape probability", "Table 3", "Tables 4 and 5", "Table 6",
@@ -56,3 +58,48 @@ def test_the_rules_section_adds_evosax_rows_only_where_it_is_installed(monkeypat
     methods, note = reproduce.rule_methods()
     assert methods == reproduce.RULES + reproduce.EVOSAX_RULES and "CMA-ES" in note
     assert all(evolution.is_strategy(m) for m in reproduce.EVOSAX_RULES)
+
+
+def _section(title, text, long=False, wait=None):
+    def fill(part):
+        if wait is not None:
+            assert wait.wait(10)
+        part.add(text)
+    return reproduce._Section(title, fill, long)
+
+
+@pytest.mark.parametrize("workers", [1, 2, 3])
+def test_sections_come_back_in_their_order_and_long_ones_start_first(tmp_path, workers):
+    lines = []
+    sections = [_section("a", "first"), _section("b", "second", long=True), _section("c", "third")]
+    parts = reproduce._run_sections(sections, tmp_path, workers, lines.append, time.perf_counter())
+    assert [part.lines for part in parts] == [["first"], ["second"], ["third"]]
+    started = [line.split("] ")[1] for line in lines if re.match(r"\[\d/3, ", line)]
+    assert started[0] == ("a" if workers == 1 else "b") and sorted(started) == ["a", "b", "c"]
+    assert sum(line.endswith(("] done: a", "] done: b", "] done: c")) for line in lines) == (
+        0 if workers == 1 else 3)
+
+
+def test_a_failing_section_raises_without_waiting_for_the_others(tmp_path):
+    release = threading.Event()  # the other section waits until the error has come through
+
+    def broken(part):
+        raise ValueError("suite must be a non-empty list")
+
+    sections = [_section("slow", "x", wait=release), reproduce._Section("broken", broken)]
+    try:
+        with pytest.raises(ValueError, match="non-empty list"):
+            reproduce._run_sections(sections, tmp_path, 2, lambda text: None, 0.0)
+    finally:
+        release.set()
+
+
+def test_workers_default_to_the_cores_and_must_be_1_across_processes(monkeypatch):
+    assert 1 <= reproduce._section_workers(None) <= 5
+    assert reproduce._section_workers(3) == 3
+    with pytest.raises(ValueError, match="workers must be"):
+        reproduce._section_workers(0)
+    monkeypatch.setattr(jax, "process_count", lambda: 2)
+    assert reproduce._section_workers(None) == 1
+    with pytest.raises(ValueError, match="workers must be 1 with 2 processes"):
+        reproduce._section_workers(2)

@@ -5,6 +5,8 @@ import json
 import os
 import subprocess
 import sys
+import threading
+import time
 
 import jax
 import numpy as np
@@ -134,3 +136,33 @@ def test_a_program_export_refuses_runs_as_plain_jit_with_a_warning(monkeypatch, 
         np.testing.assert_array_equal(program(v), 2 * v)
     np.testing.assert_array_equal(program(v + 1), 2 * (v + 1))  # no second warning
     assert not list(tmp_path.iterdir()) and program._cache_size() == 1
+
+
+def test_threads_asking_for_one_program_together_trace_and_compile_it_once(
+        case2, monkeypatch, tmp_path):
+    """The report runs its sections on threads; two that need the same program make it once."""
+    monkeypatch.setattr(traces, "_directory", tmp_path)
+    exports, export = [], traces._export
+
+    def slow_export(*args):  # the second thread arrives while the first is still tracing
+        exports.append(1)
+        time.sleep(0.3)
+        return export(*args)
+
+    monkeypatch.setattr(traces, "_export", slow_export)
+    evaluate = jit(problem_lib.evaluate, static_argnums=0, storable=True)
+    x = np.array([[66.7388, -28.1028, -9.8855]], np.float32)
+    results = [None, None]
+
+    def call(i):
+        results[i] = evaluate(case2.spec, case2.arrays, x)
+
+    threads = [threading.Thread(target=call, args=(i,)) for i in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(exports) == 1 and evaluate._cache_size() == 1
+    assert len(list(tmp_path.iterdir())) == 1
+    for a, b in zip(*results):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
