@@ -444,11 +444,23 @@ def main(argv=None) -> int:
             raise
         message = str(error).splitlines()[0] if str(error) else type(error).__name__
         print(f"jaxarm: error: {message}", file=sys.stderr)
-        return EXIT_ERROR
+        return _leave(EXIT_ERROR)
     except KeyboardInterrupt:
         print("jaxarm: interrupted", file=sys.stderr)
-        return 130
+        return _leave(130)
     return 0
+
+
+def _leave(code: int) -> int:
+    """``code``; but where the report's section threads still run (an error or Ctrl-C stopped
+    the report midway), the process ends at once: an exiting Python tears down the XLA runtime
+    under them, and the process then aborts instead of returning ``code``."""
+    reproduce = sys.modules.get("jaxarm.reproduce")  # imported only by reproduce-paper
+    if reproduce is not None and reproduce.sections_running():
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
 
 
 if __name__ == "__main__":

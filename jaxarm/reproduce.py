@@ -12,6 +12,7 @@ import math
 import os
 import pathlib
 import platform
+import sys
 import threading
 import time
 from typing import Callable, NamedTuple
@@ -53,9 +54,17 @@ class _Report:
         return path
 
 
+def _print(text: str) -> None:
+    """``print``, clearing the progress bars (tqdm, on stderr) first and drawing them again
+    below the line."""
+    from tqdm import tqdm
+
+    tqdm.write(text, file=sys.stdout)
+
+
 def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None = None,
                     suite: list[str] | None = None, suite_seeds: int | None = None,
-                    degrees=(6, 7, 8), log: Callable[[str], None] = print,
+                    degrees=(6, 7, 8), log: Callable[[str], None] = _print,
                     progress: bool | None = None, workers: int | None = None):
     """Run the paper's experiments and the suite study; write ``out_dir/report.md``.
 
@@ -66,13 +75,13 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
       suite: scenario names for the suite study (default: every shipped scenario).
       suite_seeds: seeds per suite scenario (default 200, or 50 when quick).
       degrees: path degrees compared in the beyond-the-paper section.
-      log: where progress lines go.
+      log: where progress lines go (default: stdout, above any progress bars).
       progress: progress bars (default: when stderr is a terminal).
       workers: threads running the report's five sections side by side (default: the cores
         this process may use, at most 5; 1 when JAX has several devices or processes, whose
         programs must start in the same order everywhere). Results do not depend on it; times
-        do. One section's compilation overlaps another's run: on 2 cores the quick report took
-        ... (``benchmarks/RESULTS.md``).
+        do. One section compiles while another runs: on 2 cores the quick report took 83-120 s
+        with 2 threads against 110-149 s with 1 (``benchmarks/RESULTS.md``).
 
     Returns:
       The path of the report.
@@ -84,10 +93,10 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
                    else (50 if quick else 200))
     suite = _suite_problems(list(scenarios.available()) if suite is None else suite)
     degrees = [positive_int("degrees", d, minimum=6) for d in degrees]
+    workers = _section_workers(workers)
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     report = _Report(out)
-    workers = _section_workers(workers)
     chunk = _shared_chunk(n_seeds, suite_seeds)
     # The paper's tables use the paper's check: collision-free at the 101 samples of r.
     case1, case2, case3, death_trap = (
@@ -178,6 +187,15 @@ def _workers_sentence(workers: int) -> str:
             "depends on it.")
 
 
+SECTION_THREADS = "jaxarm-report-section"
+
+
+def sections_running() -> bool:
+    """Whether a section thread of an unfinished report still runs (``_run_sections``)."""
+    return any(thread.name.startswith(SECTION_THREADS) and thread.is_alive()
+               for thread in threading.enumerate())
+
+
 def _run_sections(sections: list, out: pathlib.Path, workers: int,
                   log: Callable[[str], None], began: float) -> list:
     """Each section filled into a ``_Report`` of its own; the reports in the sections' order.
@@ -217,7 +235,7 @@ def _run_sections(sections: list, out: pathlib.Path, workers: int,
                     errors.append(error)
                 return
 
-    threads = [threading.Thread(target=worker, name=f"jaxarm-report-{n}", daemon=True)
+    threads = [threading.Thread(target=worker, name=f"{SECTION_THREADS}-{n}", daemon=True)
                for n in range(min(workers, len(sections)))]
     for thread in threads:
         thread.start()

@@ -1,6 +1,8 @@
 """``reproduce-paper`` (``jaxarm.reproduce``): every table of the report."""
 
 import re
+import subprocess
+import sys
 import threading
 import time
 
@@ -103,3 +105,28 @@ def test_workers_default_to_the_cores_and_must_be_1_across_processes(monkeypatch
     assert reproduce._section_workers(None) == 1
     with pytest.raises(ValueError, match="workers must be 1 with 2 processes"):
         reproduce._section_workers(2)
+
+
+STOPPED_MIDWAY = """
+import sys, threading, time
+import jax, jax.numpy as jnp
+from jaxarm import cli, reproduce
+
+def section():  # a section thread still inside an XLA program
+    x = jnp.ones((300, 300))
+    steps = jax.jit(lambda x: jax.lax.fori_loop(0, 10**6, lambda i, a: jnp.tanh(a @ x), x))
+    steps(x).block_until_ready()
+
+threading.Thread(target=section, name=reproduce.SECTION_THREADS + "-0", daemon=True).start()
+time.sleep(1.0)
+sys.exit(cli._leave(130))
+"""
+
+
+def test_the_cli_stopped_midway_exits_with_its_code_while_sections_still_run():
+    """Ctrl-C or an error while report sections run: a plain exit tore the XLA runtime down
+    under them and the process aborted (code 134)."""
+    done = subprocess.run([sys.executable, "-c", STOPPED_MIDWAY], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 130, done.stderr[-500:]
+    assert "FATAL" not in done.stderr
