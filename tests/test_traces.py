@@ -153,6 +153,7 @@ def test_threads_asking_for_one_program_together_trace_and_compile_it_once(
     evaluate = jit(problem_lib.evaluate, static_argnums=0, storable=True)
     x = np.array([[66.7388, -28.1028, -9.8855]], np.float32)
     results = [None, None]
+    before = evaluate._cache_size()  # jax.jit shares its cache with other tests' programs
 
     def call(i):
         results[i] = evaluate(case2.spec, case2.arrays, x)
@@ -162,7 +163,7 @@ def test_threads_asking_for_one_program_together_trace_and_compile_it_once(
         thread.start()
     for thread in threads:
         thread.join()
-    assert len(exports) == 1 and evaluate._cache_size() == 1
+    assert len(exports) == 1 and evaluate._cache_size() == before + 1
     assert len(list(tmp_path.iterdir())) == 1
     for a, b in zip(*results):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
