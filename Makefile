@@ -2,7 +2,7 @@
 # runs), `make test-all` every test, `make docs` the API reference (docs/api/); each creates
 # .venv when missing (`make test-oldest`: the quick suite on the oldest dependencies, in its
 # own .venv-oldest). The tests run in two pytest-xdist workers: 4 min 37-44 s against 7 min
-# in one process on 2 cores when last compared; pytest 2 to 4.5 min since (by machine); they share
+# in one process on 2 cores when last compared; pytest 2 to 5 min since (by machine); they share
 # one scratch compilation cache (tests/conftest.py; benchmarks/RESULTS.md, "Test suite time").
 PYTHON ?= python3
 VENV := .venv
