@@ -81,7 +81,7 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
         this process may use, at most 5; 1 when JAX has several devices or processes, whose
         programs must start in the same order everywhere). Results do not depend on it; times
         do. One section compiles while another runs: on 2 cores the quick report took 83-120 s
-        with 2 threads against 110-149 s with 1 (``benchmarks/RESULTS.md``).
+        with 2 threads against 110-149 s one after another (``benchmarks/RESULTS.md``).
 
     Returns:
       The path of the report.
