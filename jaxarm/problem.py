@@ -173,8 +173,7 @@ class Problem:
         capacities = self.capacities or self.world.capacities()
         self.world.pack(capacities)  # raises if the capacities are too small
         set_field("capacities", tuple(int(c) for c in capacities))
-        for which in ("start", "goal"):
-            self._check_posture(which)
+        self._check_postures()
 
     def _bound(self, name: str):
         value = getattr(self, name)
@@ -182,28 +181,32 @@ class Problem:
             return finite_scalar(name, value)
         return tuple(finite_vector(name, value, self.n_free).tolist())
 
-    def _check_posture(self, which: str) -> None:
-        theta = np.asarray(getattr(self, which), dtype=jnp.result_type(float))
-        lengths = np.asarray(self.arm.lengths, dtype=theta.dtype)
+    def _check_postures(self) -> None:
+        """Start, then goal: neither may overlap an obstacle or come closer than the margin."""
+        dtype = jnp.result_type(float)
+        lengths = np.asarray(self.arm.lengths, dtype=dtype)
         capacities = _posture_capacities(self.capacities)
-        world = self.world.pack(capacities)
+        world, names = self.world.pack(capacities), self.world.slot_names(capacities)
+        for which in ("start", "goal"):
+            self._check_posture(which, np.asarray(getattr(self, which), dtype=dtype), lengths,
+                                world, names)
+
+    def _check_posture(self, which: str, theta, lengths, world, names) -> None:
         depth = np.asarray(_posture_depth(lengths, world, theta))
         if np.any(depth > 0):
             link, slot = np.unravel_index(int(np.argmax(depth > 0)), depth.shape)
-            name = self.world.slot_names(capacities)[slot]
             raise ValueError(
                 f"{which} posture {list(getattr(self, which))} collides: link {link + 1} "
-                f"overlaps {name} by {depth[link, slot]:.4g} cm"
+                f"overlaps {names[slot]} by {depth[link, slot]:.4g} cm"
             )
         if self.margin > 0:
             separation = np.asarray(_posture_separation(lengths, world, theta))
             if np.any(separation < self.margin):
                 link, slot = np.unravel_index(int(np.argmin(separation)), separation.shape)
-                name = self.world.slot_names(capacities)[slot]
                 raise ValueError(
                     f"{which} posture {list(getattr(self, which))} breaks margin "
                     f"{self.margin:g} cm: link {link + 1} is {separation[link, slot]:.4g} cm "
-                    f"from {name}"
+                    f"from {names[slot]}"
                 )
 
     @property

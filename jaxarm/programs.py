@@ -56,15 +56,14 @@ class _Program:
     """A ``jax.jit`` made at its first use, for the backend in use then; with
     ``jaxarm.traces`` on, top-level calls go through stored traced programs instead.
 
-    Safe to call from several threads: a program is made once (``jax.jit`` itself compiles a
-    program once when threads call it together)."""
+    Safe to call from several threads: a program is made once (and ``jax.jit`` compiled a
+    program once when two threads called it together, checked by hand)."""
 
     def __init__(self, fun, options: dict, storable: bool = False):
         self._fun, self._options, self._jitted, self._storable = fun, options, None, storable
         self._nested = jax.jit(fun, **options)
         self._stored = {}  # Call.memo_key() -> traces.Stored, or None where export refused it
-        self._lock = threading.Lock()  # guards _jitted and _stored
-        self._making = {}  # Call.memo_key() -> a lock held while that stored program is made
+        self._lock = threading.Lock()  # held while _jitted or a stored program is made
         functools.update_wrapper(self, fun)
 
     def _compiler_options(self):
@@ -99,11 +98,10 @@ class _Program:
         return jax.tree.unflatten(stored.out_tree, stored.call(*call.leaves))
 
     def _stored_program(self, call: traces.Call) -> traces.Stored | None:
-        """The stored program for ``call``, made by the first thread that asks for it."""
+        """The stored program for ``call``, made by the first thread that asks for it (one lock
+        for all calls: tracing runs in Python, one thread at a time, anyway)."""
         key = call.memo_key()
         with self._lock:
-            making = self._making.setdefault(key, threading.Lock())
-        with making:  # a second thread asking for the same program waits for the first
             if key not in self._stored:
                 label = f"{self._fun.__module__}.{self._fun.__qualname__} {self._options!r}"
                 self._stored[key] = traces.stored_program(self._fun, label, call,
@@ -119,6 +117,6 @@ class _Program:
 
     def __getattr__(self, name: str):  # trace, lower, ...
         if name.startswith("__") or name in ("_fun", "_options", "_jitted", "_nested", "_stored",
-                                                   "_storable", "_lock", "_making"):
+                                                   "_storable", "_lock"):
             raise AttributeError(name)
         return getattr(self._compiled(), name)
