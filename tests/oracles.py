@@ -51,15 +51,17 @@ def oracle_separation(world, start, end):
     return distance, hit
 
 
-def random_world_problems(rng, n_worlds):
-    """Problems with random worlds around a fixed start and goal (skipping colliding ones)."""
+def random_world_problems(rng, n_worlds, collision):
+    """Problems with random worlds around a fixed start and goal (skipping colliding ones),
+    under the check ``collision``."""
     arm = jaxarm.Arm((30.0, 30.0, 20.0))
     problems = []
     while len(problems) < n_worlds:
         try:
             problems.append(jaxarm.Problem(arm=arm, start=[-1.0, 1.2, 0.8], goal=[1.2, -0.6, 1.0],
                                            world=random_world(rng), capacities=CAPACITIES,
-                                           init_low=-60.0, init_high=60.0))
+                                           init_low=-60.0, init_high=60.0,
+                                           collision=collision))
         except ValueError:
             continue
     return problems

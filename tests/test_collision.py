@@ -16,7 +16,7 @@ from oracles import oracle_path_collides, random_world_problems
 
 def test_sampled_check_agrees_with_shapely_on_the_same_samples(rng):
     agreed = 0
-    for problem in random_world_problems(rng, 40):
+    for problem in random_world_problems(rng, 40, collision="sampled"):
         x = rng.uniform(problem.init_low, problem.init_high, (25, problem.n_free))
         ours = np.asarray(jaxarm.violation(problem, x))
         oracle = oracle_path_collides(problem, x, problem.n_samples)

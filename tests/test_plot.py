@@ -6,7 +6,7 @@ import pytest
 import jaxarm
 from jaxarm import plot, study
 
-SMALL = dict(n_particles=8, n_iters=12)
+from sizes import SMALL
 
 
 def test_plots_produce_non_empty_pngs(tmp_path, case2):

@@ -11,7 +11,7 @@ from jaxarm import constraints, pso, restarts
 from jaxarm.constraints import Measured
 from jaxarm.restarts import compiled_search
 
-SMALL = dict(n_particles=8, n_iters=12)
+from sizes import SMALL
 
 
 def test_same_seed_gives_bit_identical_results(case2):

@@ -11,9 +11,7 @@ from jaxarm import pso, published
 from jaxarm.study import wilson_interval
 
 from oracles import oracle_separation
-
-
-SMALL = dict(n_particles=8, n_iters=12)
+from sizes import SMALL
 
 
 def test_init_particles_seed_the_swarm(case2):

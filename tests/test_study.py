@@ -8,8 +8,7 @@ import pytest
 import jaxarm
 from jaxarm import stats, study
 
-
-SMALL = dict(n_particles=8, n_iters=12)
+from sizes import SMALL
 
 
 def test_study_is_reproducible_and_chunking_does_not_matter(case2):
