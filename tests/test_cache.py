@@ -30,8 +30,9 @@ def test_cache_dir_follows_the_environment(monkeypatch, tmp_path):
 
 
 def test_the_cli_caches_by_default_and_not_with_no_cache(tmp_path):
-    argv = [sys.executable, "-m", "jaxarm", "solve", "paper-case-2", "--collision", "sampled",
-            "--particles", "8", "--iters", "12"]
+    # a small study: it compiles less than a solve (which also certifies its best path)
+    argv = [sys.executable, "-m", "jaxarm", "study", "paper-case-2", "--collision", "sampled",
+            "--particles", "8", "--iters", "12", "--seeds", "4", "--methods", "A"]
     for flag, folder in (([], tmp_path / "on"), (["--no-cache"], tmp_path / "off")):
         env = dict(os.environ, JAXARM_CACHE_DIR=str(folder))
         subprocess.run(argv[:3] + flag + argv[3:], env=env, check=True, capture_output=True,

@@ -110,7 +110,8 @@ def test_certified_verdicts_do_not_depend_on_the_batch(rng):
 
 def test_small_certify_batches_share_one_program_and_agree_with_a_large_one(rng):
     problem = thin_wall_problem(rng)
-    x = rng.uniform(-60, 60, (SMALL_BATCH + 6, problem.n_free)).astype(np.float32)
+    # 200 paths: the large batch runs the program of the next test's reference
+    x = rng.uniform(-60, 60, (200, problem.n_free)).astype(np.float32)
     large = jaxarm.certify(problem, x)
     jaxarm.certify(problem, x[:1])
     programs = _certify._cache_size()
@@ -128,22 +129,24 @@ def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch):
     bisection, narrow or wide, give every path the same verdict as one chunk and one loop."""
     problem = thin_wall_problem(rng)
     arrays = problem.arrays
-    x = rng.uniform(-10, 10, (300, problem.n_free)).astype(np.float32)
-
-    def check():
-        return jax.jit(lambda x: certified.check(
-            arrays.lengths, arrays.world, arrays.start, arrays.goal, x, problem.degree,
-            problem.n_samples, arrays.certify_tol, arrays.margin, problem.certify_budget))(x)
-
-    one_chunk_narrow = check()  # 300 paths < WINDOW_CHUNK, fewer than FEW_PATHS to bisect
+    x = rng.uniform(-10, 10, (200, problem.n_free)).astype(np.float32)
+    # One chunk and one narrow loop: 200 paths (padded to 256) < WINDOW_CHUNK, fewer than
+    # FEW_PATHS to bisect; the programs of the dense check and of the test above.
+    one_chunk_narrow = jaxarm.certify(problem, x)._asdict()
+    one_chunk_narrow["violation"] = jaxarm.violation(problem, x)
     monkeypatch.setattr(certified, "WINDOW_CHUNK", 16)
     monkeypatch.setattr(certified, "_wide_lanes", lambda: 128)  # as on an accelerator
     monkeypatch.setattr(certified, "FEW_PATHS", -1)  # always the wide loop
-    chunked_wide = check()
-    assert np.sum(~np.asarray(one_chunk_narrow.colliding)) > 3 * 16  # several chunks ran
-    assert np.sum(np.asarray(one_chunk_narrow.free)) > 10
-    for a, b in zip(one_chunk_narrow, chunked_wide):
-        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    # the problem's arrays as arguments, as in ``certify`` (constants would be folded into
+    # the program, and the clearances then differ in their last bits)
+    chunked_wide = jax.jit(lambda arrays, x: certified.check(
+        arrays.lengths, arrays.world, arrays.start, arrays.goal, x, problem.degree,
+        problem.n_samples, arrays.certify_tol, arrays.margin, problem.certify_budget))(arrays, x)
+    assert np.sum(~one_chunk_narrow["colliding"]) > 3 * 16  # several chunks ran
+    assert np.sum(one_chunk_narrow["free"]) > 10
+    for name, value in one_chunk_narrow.items():
+        np.testing.assert_array_equal(value, np.asarray(getattr(chunked_wide, name)),
+                                      err_msg=name)
 
 
 def test_margin_keeps_the_arm_away(case2):
