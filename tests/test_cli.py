@@ -23,7 +23,7 @@ def test_cli_scenarios_lists_every_shipped_scenario(capsys):
 
 
 def test_cli_solve_writes_json_and_plot(capsys, tmp_path):
-    # the sizes of the next test (another seed and rule): both run one search program
+    # the sizes of the next tests (another seed and rule): they run one search program
     code, out, _ = run_cli(capsys, "solve", "paper-case-2", "--particles", "6", "--iters", "10",
                            "--restarts", "2", "--samples", "51", "--json",
                            str(tmp_path / "r.json"), "--plot", str(tmp_path / "r.png"))
@@ -67,9 +67,10 @@ def test_cli_solve_json_describes_its_run_well_enough_to_repeat_it(capsys, tmp_p
 
 
 def test_cli_solve_times_the_best_path_and_exports_it(capsys, tmp_path):
-    code, out, _ = run_cli(capsys, "solve", "paper-case-2", "--particles", "8", "--iters", "12",
-                           "--restarts", "2", "--max-velocity", "1", "--max-torque", "40,20,5",
-                           "--export", str(tmp_path / "t.csv"), "--json", str(tmp_path / "r.json"))
+    sizes = ("--particles", "6", "--iters", "10", "--restarts", "2", "--samples", "51")
+    code, out, _ = run_cli(capsys, "solve", "paper-case-2", *sizes, "--max-velocity", "1",
+                           "--max-torque", "40,20,5", "--export", str(tmp_path / "t.csv"),
+                           "--json", str(tmp_path / "r.json"))
     assert code == 0
     best_x = json.loads((tmp_path / "r.json").read_text())["result"]["best_x"]
     problem = jaxarm.load_scenario("paper-case-2")
@@ -79,17 +80,17 @@ def test_cli_solve_times_the_best_path_and_exports_it(capsys, tmp_path):
     assert "peak |velocity| [1.0," in out or ", 1.0" in out.split("peak |velocity|")[1]
     rows = np.loadtxt(tmp_path / "t.csv", delimiter=",", skiprows=1)
     assert rows[-1, 0] == pytest.approx(duration) and rows.shape[1] == 13
-    code, out, _ = run_cli(capsys, "solve", "paper-case-2", "--particles", "8", "--iters", "12",
-                           "--duration", "2.5", "--export", str(tmp_path / "t.json"))
+    code, out, _ = run_cli(capsys, "solve", "paper-case-2", *sizes, "--duration", "2.5",
+                           "--export", str(tmp_path / "t.json"))
     assert code == 0 and "trajectory: T = 2.5 s (given)" in out
     assert json.loads((tmp_path / "t.json").read_text())["duration"] == 2.5
 
 
 def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
     code, out, _ = run_cli(capsys, "study", "paper-case-2", "--seeds", "4", "--methods",
-                           "A,A:epsilon", "--particles", "8", "--iters", "12", "--pairwise",
-                           "--json", str(tmp_path / "s.json"), "--csv", str(tmp_path / "s.csv"),
-                           "--plot", str(tmp_path / "s.png"))
+                           "A,A:epsilon", "--particles", "6", "--iters", "10", "--samples", "51",
+                           "--pairwise", "--json", str(tmp_path / "s.json"),
+                           "--csv", str(tmp_path / "s.csv"), "--plot", str(tmp_path / "s.png"))
     assert code == 0 and "escape rate" in out and "| A:epsilon - A | " in out
     assert len((tmp_path / "s.csv").read_text().splitlines()) == 9
     assert len(json.loads((tmp_path / "s.json").read_text())["methods"]) == 2
