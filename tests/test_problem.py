@@ -219,11 +219,13 @@ def test_overflowing_paths_are_never_feasible(case1, mode):
     # The public functions reject non-finite x; a swarm without a velocity clamp can still
     # drive positions to overflow inside a compiled search.
     problem = case1.replace(collision=mode)
-    x = jnp.array([[jnp.inf, 0, 0], [1e30, 0, 0], [jnp.nan, 0, 0], [3e38, 3e38, -3e38]],
-                  jnp.float32)
-    evaluation = jaxarm.problem.evaluate(problem.spec, problem.arrays, x)
-    assert np.all(np.asarray(evaluation.fitness) == 0)
-    assert not np.any(np.asarray(evaluation.violation) == 0)
+    x = np.array([[np.inf, 0, 0], [1e30, 0, 0], [np.nan, 0, 0], [3e38, 3e38, -3e38]],
+                 np.float32)
+    # compiled, padded with 60 zero paths: the 64-row program the public functions run
+    rows = np.concatenate([x, np.zeros((60, 3), np.float32)])
+    evaluation = jaxarm.problem._evaluate(problem.spec, problem.arrays, rows)
+    assert np.all(np.asarray(evaluation.fitness[:4]) == 0)
+    assert not np.any(np.asarray(evaluation.violation[:4]) == 0)
 
 
 def test_share_capacities_gives_each_arm_its_largest_slots_and_one_search_program(case2):
