@@ -1,7 +1,6 @@
 """The certified continuous check (``jaxarm.certified``, ``jaxarm.certify``) against an independent
 dense oracle (shapely, float64)."""
 
-import jax
 import numpy as np
 import pytest
 
@@ -9,6 +8,7 @@ import jaxarm
 from jaxarm import certified, published
 from jaxarm.oracle import dense_clearance
 from jaxarm.problem import SMALL_BATCH, _certify
+from jaxarm.programs import jit
 from jaxarm.published import a6_array
 
 from oracles import oracle_path_collides, thin_wall_problem
@@ -137,9 +137,9 @@ def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch):
     monkeypatch.setattr(certified, "WINDOW_CHUNK", 16)
     monkeypatch.setattr(certified, "_wide_lanes", lambda: 128)  # as on an accelerator
     monkeypatch.setattr(certified, "FEW_PATHS", -1)  # always the wide loop
-    # the problem's arrays as arguments, as in ``certify`` (constants would be folded into
-    # the program, and the clearances then differ in their last bits)
-    chunked_wide = jax.jit(lambda arrays, x: certified.check(
+    # compiled as ``certify`` is: the problem's arrays as arguments (as constants they were
+    # folded into the program, and the clearances differed in their last bits)
+    chunked_wide = jit(lambda arrays, x: certified.check(
         arrays.lengths, arrays.world, arrays.start, arrays.goal, x, problem.degree,
         problem.n_samples, arrays.certify_tol, arrays.margin, problem.certify_budget))(arrays, x)
     assert np.sum(~one_chunk_narrow["colliding"]) > 3 * 16  # several chunks ran

@@ -7,6 +7,7 @@ import pytest
 
 import jaxarm
 from jaxarm import world as world_lib
+from jaxarm.programs import jit  # compiles faster than jax.jit on CPU
 
 from oracles import CAPACITIES, oracle_separation, random_world
 
@@ -26,13 +27,13 @@ def test_bad_worlds(world, message):
 
 
 def test_segment_separation_agrees_with_shapely_on_random_worlds(rng):
-    # compiled once (op by op, 300 worlds took most of this test's time)
-    separation_of, penetration_of, bound_of = (jax.jit(f) for f in (
+    # compiled once (op by op, 300 worlds took most of this test's time), as jaxarm compiles
+    separation_of, penetration_of, bound_of = (jit(f) for f in (
         world_lib.separation, world_lib.penetration, world_lib.separation_bound_xy))
     # The sampled check computes polygons slot by slot: the same numbers as the array form.
-    slot_forms = jax.jit(lambda *args: [jnp.stack(world_lib.polygon_slots(*args, exact=exact))
+    slot_forms = jit(lambda *args: [jnp.stack(world_lib.polygon_slots(*args, exact=exact))
                                         for exact in (True, False)])
-    array_forms = jax.jit(lambda *args: [world_lib.polygon_separation_xy(*args),
+    array_forms = jit(lambda *args: [world_lib.polygon_separation_xy(*args),
                                          world_lib.polygon_overlap_gap_xy(*args)])
     checked = 0
     for _ in range(300):
