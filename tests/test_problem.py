@@ -10,7 +10,6 @@ from hypothesis import strategies as st
 import jaxarm
 import jaxarm.problem  # the module itself, for evaluate and vmapped_evaluate
 from jaxarm import published
-from jaxarm.programs import jit
 from jaxarm.restarts import is_compiled
 
 CASE_2_FEASIBLE = [s for s in published.CASE_2 if s.feasible]
@@ -89,7 +88,7 @@ def test_jit_equals_no_jit(case2, rng, mode):
     spec, arrays = problem.spec, problem.arrays
     with jax.disable_jit():
         eager = jaxarm.problem.evaluate(spec, arrays, x)
-    jitted = jit(jaxarm.problem.evaluate, static_argnums=0)(spec, arrays, x)
+    jitted = jax.jit(jaxarm.problem.evaluate, static_argnums=0)(spec, arrays, x)
     for a, b in zip(eager, jitted):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
 
