@@ -10,6 +10,11 @@ import jaxarm
 from jaxarm import choices, cli
 
 
+# The search sizes of every solve and study test here: with them (and restart counts in one
+# padded block) they run one compiled search program.
+SEARCH_SIZES = ("--particles", "6", "--iters", "10", "--samples", "51")
+
+
 def run_cli(capsys, *argv):
     code = cli.main(list(argv))
     out, err = capsys.readouterr()
@@ -23,10 +28,8 @@ def test_cli_scenarios_lists_every_shipped_scenario(capsys):
 
 
 def test_cli_solve_writes_json_and_plot(capsys, tmp_path):
-    # the sizes of the next tests (another seed and rule): they run one search program
-    code, out, _ = run_cli(capsys, "solve", "paper-case-2", "--particles", "6", "--iters", "10",
-                           "--restarts", "2", "--samples", "51", "--json",
-                           str(tmp_path / "r.json"), "--plot", str(tmp_path / "r.png"))
+    code, out, _ = run_cli(capsys, "solve", "paper-case-2", *SEARCH_SIZES, "--restarts", "2",
+                           "--json", str(tmp_path / "r.json"), "--plot", str(tmp_path / "r.png"))
     assert code == 0 and "fitness" in out
     data = json.loads((tmp_path / "r.json").read_text())
     assert len(data["result"]["best_x"]) == 3 and len(data["result"]["history"]) == 11
@@ -37,10 +40,9 @@ def test_cli_solve_writes_json_and_plot(capsys, tmp_path):
 
 
 def test_cli_solve_json_describes_its_run_well_enough_to_repeat_it(capsys, tmp_path):
-    code, _, _ = run_cli(capsys, "solve", "paper-case-2", "--particles", "6", "--iters", "10",
-                         "--restarts", "3", "--seed", "4", "--samples", "51", "--init-low",
-                         "-60", "--init-high", "80", "--refine", "all", "--constraint",
-                         "feasibility", "--json", str(tmp_path / "r.json"))
+    code, _, _ = run_cli(capsys, "solve", "paper-case-2", *SEARCH_SIZES, "--restarts", "3",
+                         "--seed", "4", "--init-low", "-60", "--init-high", "80", "--refine",
+                         "all", "--constraint", "feasibility", "--json", str(tmp_path / "r.json"))
     assert code == 0
     data = json.loads((tmp_path / "r.json").read_text())
     assert data["jaxarm"] == jaxarm.__version__ and data["jax"]
@@ -67,13 +69,13 @@ def test_cli_solve_json_describes_its_run_well_enough_to_repeat_it(capsys, tmp_p
 
 
 def test_cli_solve_times_the_best_path_and_exports_it(capsys, tmp_path):
-    sizes = ("--particles", "6", "--iters", "10", "--restarts", "2", "--samples", "51")
+    sizes = (*SEARCH_SIZES, "--restarts", "2")
     code, out, _ = run_cli(capsys, "solve", "paper-case-2", *sizes, "--max-velocity", "1",
                            "--max-torque", "40,20,5", "--export", str(tmp_path / "t.csv"),
                            "--json", str(tmp_path / "r.json"))
     assert code == 0
     best_x = json.loads((tmp_path / "r.json").read_text())["result"]["best_x"]
-    problem = jaxarm.load_scenario("paper-case-2")
+    problem = jaxarm.load_scenario("paper-case-2", n_samples=51)  # the problem solved
     duration = jaxarm.min_duration(problem, best_x, max_velocity=1.0,
                                    max_torque=[40.0, 20.0, 5.0])
     assert f"trajectory: T = {duration:.6g} s (the shortest meeting max_velocity" in out
@@ -87,10 +89,10 @@ def test_cli_solve_times_the_best_path_and_exports_it(capsys, tmp_path):
 
 
 def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
-    code, out, _ = run_cli(capsys, "study", "paper-case-2", "--seeds", "4", "--methods",
-                           "A,A:epsilon", "--particles", "6", "--iters", "10", "--samples", "51",
-                           "--pairwise", "--json", str(tmp_path / "s.json"),
-                           "--csv", str(tmp_path / "s.csv"), "--plot", str(tmp_path / "s.png"))
+    code, out, _ = run_cli(capsys, "study", "paper-case-2", *SEARCH_SIZES, "--seeds", "4",
+                           "--methods", "A,A:epsilon", "--pairwise",
+                           "--json", str(tmp_path / "s.json"), "--csv", str(tmp_path / "s.csv"),
+                           "--plot", str(tmp_path / "s.png"))
     assert code == 0 and "escape rate" in out and "| A:epsilon - A | " in out
     assert len((tmp_path / "s.csv").read_text().splitlines()) == 9
     assert len(json.loads((tmp_path / "s.json").read_text())["methods"]) == 2
