@@ -6,6 +6,7 @@ import pytest
 
 import jaxarm
 from jaxarm import joint_limits, path
+from oracles import oracle_path_collides
 
 # The paper's case II: joint 1 moves from 5.78 to 5.43 rad, joint 2 from 1.15 to 2.02 rad.
 LIMITS = [(4.0, 6.5), (0.9, 2.6), (0.2, 1.0)]
@@ -48,20 +49,25 @@ def test_bernstein_bounds_contain_the_path_and_are_tight():
     assert np.all(gap <= (1.0 / n_pieces) ** 2 / 8 * curvature.max(axis=1) + 1e-12)
 
 
-def test_certified_limits_never_call_a_leaving_path_inside(limited):
+@pytest.fixture(scope="module")
+def open_space(limited):
+    """Only the limits can fail. The certified tests of the limits run here: with obstacles,
+    most wild paths are refused for a collision anyway, whatever the limits' check says."""
+    return limited.replace(world=jaxarm.World())
+
+
+def test_certified_limits_never_call_a_leaving_path_inside(open_space):
     rng = np.random.default_rng(1)
-    x = rng.uniform(-400, 400, (1000, 3)).astype(np.float32)
-    truth = dense_excess(limited, x)
-    certificate = jaxarm.certify(limited, x)
-    assert not np.any(certificate.free & (truth > 0))  # no false "inside" (nor obstacle-free)
-    excess = np.asarray(jaxarm.violation(limited, x)) - np.asarray(
-        jaxarm.violation(limited.replace(joint_limits=None), x))
+    x = rng.uniform(-400, 400, (3000, 3)).astype(np.float32)  # 3000: the next test's program
+    truth = dense_excess(open_space, x)
+    certificate = jaxarm.certify(open_space, x)
+    assert not np.any(certificate.free & (truth > 0))  # no false "inside"
+    excess = np.asarray(jaxarm.violation(open_space, x))  # no obstacle: the limits' alone
     assert np.all(excess[truth > 1e-6] > 0)
     assert np.all(np.asarray(certificate.colliding)[truth > 1e-3])  # found at the piece ends
 
 
-def test_certified_limits_prove_paths_that_stay_a_little_inside(limited):
-    open_space = limited.replace(world=jaxarm.World())  # only the limits can fail
+def test_certified_limits_prove_paths_that_stay_a_little_inside(open_space):
     rng = np.random.default_rng(3)
     x = rng.uniform(-60, 60, (3000, 3)).astype(np.float32)
     with jax.enable_x64(True):
@@ -93,8 +99,12 @@ def test_a_search_under_limits_keeps_every_joint_inside(limited):
     assert dense_excess(tight, unconstrained_best) > 0.1  # joint 3 reaches 0.957 rad
     result = jaxarm.solve(tight, "A", n_particles=12, n_iters=30, n_restarts=4, seed=0,
                           constraint="feasibility")
-    assert result.feasible and bool(jaxarm.certify(tight, result.best_x).free)
-    assert dense_excess(tight, result.best_x) == 0.0
+    assert result.feasible and dense_excess(tight, result.best_x) == 0.0
+    # Among the obstacles, a path that clears them but leaves the limits is not free either.
+    certificate = jaxarm.certify(tight, [result.best_x, unconstrained_best])
+    np.testing.assert_array_equal(certificate.free, [True, False])
+    np.testing.assert_array_equal(certificate.colliding, [False, True])
+    assert not oracle_path_collides(tight, [unconstrained_best], 2001)[0]  # shapely, dense
 
 
 def test_bad_limits_and_postures_outside_them_are_refused(limited):

@@ -45,6 +45,10 @@ def test_fitness_is_inverse_distance_when_free_and_zero_when_colliding(case2, rn
     x = rng.uniform(-200, 200, (2000, 3))
     fitness = np.asarray(jaxarm.fitness(case2, x))
     distance = np.asarray(jaxarm.travelling_distance(case2, x))
+    np.testing.assert_array_equal(distance, jaxarm.problem._evaluated(case2, x).distance)
+    programs = jaxarm.problem._evaluate._cache_size()
+    jaxarm.travelling_distance(case2.replace(n_samples=41), x)  # runs no collision check
+    assert jaxarm.problem._evaluate._cache_size() == programs
     violation = np.asarray(jaxarm.violation(case2, x))
     free = violation == 0
     assert 0 < free.sum() < len(x)
@@ -215,10 +219,11 @@ def test_vmapped_evaluate_folds_the_mapped_axis_and_agrees(case2, rng):
 
 
 @pytest.mark.parametrize("mode", ["sampled", "certified"])
-def test_overflowing_paths_are_never_feasible(case1, mode):
+def test_overflowing_paths_are_never_feasible(case2, mode):
     # The public functions reject non-finite x; a swarm without a velocity clamp can still
-    # drive positions to overflow inside a compiled search.
-    problem = case1.replace(collision=mode)
+    # drive positions to overflow inside a compiled search. (Case 2: the programs of the
+    # reconstructed-obstacle test above.)
+    problem = case2.replace(collision=mode)
     x = np.array([[np.inf, 0, 0], [1e30, 0, 0], [np.nan, 0, 0], [3e38, 3e38, -3e38]],
                  np.float32)
     # compiled, padded with 60 zero paths: the 64-row program the public functions run
