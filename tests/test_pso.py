@@ -1,7 +1,5 @@
 """The PSO engine (``jaxarm.pso``): velocity rules, presets, bests, ties, NaN."""
 
-from typing import Callable, NamedTuple
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -14,19 +12,10 @@ from jaxarm.constraints import Measured
 LOW, HIGH = jnp.full(2, -1.0), jnp.full(2, 1.0)
 
 
-class JittedSwarm(NamedTuple):
-    """A swarm's ``init`` and ``step``, each compiled as one program (run op by op, each test's
-    few updates compiled about a hundred tiny programs)."""
-
-    init: Callable
-    step: Callable
-
-
 def make_swarm(config, measure_fn, n_particles, n_iters, low=LOW, high=HIGH,
-               constraint="death") -> JittedSwarm:
-    swarm = pso.swarm(config.params(), config.rules(), measure_fn, low, high,
-                      n_particles=n_particles, n_iters=n_iters, constraint=constraint)
-    return JittedSwarm(init=jax.jit(swarm.init), step=jax.jit(swarm.step))
+               constraint="death"):
+    return pso.swarm(config.params(), config.rules(), measure_fn, low, high,
+                     n_particles=n_particles, n_iters=n_iters, constraint=constraint)
 
 
 def sphere(x):
