@@ -32,9 +32,9 @@ def test_segment_separation_agrees_with_shapely_on_random_worlds(rng):
         world_lib.separation, world_lib.penetration, world_lib.separation_bound_xy))
     # The sampled check computes polygons slot by slot: the same numbers as the array form.
     slot_forms = jit(lambda *args: [jnp.stack(world_lib.polygon_slots(*args, exact=exact))
-                                        for exact in (True, False)])
+                                    for exact in (True, False)])
     array_forms = jit(lambda *args: [world_lib.polygon_separation_xy(*args),
-                                         world_lib.polygon_overlap_gap_xy(*args)])
+                                     world_lib.polygon_overlap_gap_xy(*args)])
     checked = 0
     for _ in range(300):
         world = random_world(rng)
