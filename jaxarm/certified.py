@@ -107,7 +107,7 @@ class _WindowPass(NamedTuple):
     worst_passed: jax.Array  # shape=(B,), largest shortfall of a certified window (<= 0)
     nearest: jax.Array  # shape=(B,), smallest clearance bound at a sample (< 0: witness)
     closest: jax.Array  # shape=(B,), int32: the sample where it was found
-    failing: tuple  # n_words arrays of shape (B,), uint32: bit s of word s // 32 = window s
+    failing: jax.Array  # shape=(B, n_words), uint32: bit s % 32 of word s // 32 = window s
 
 
 def _no_windows(batch: tuple, dtype, n_samples: int) -> _WindowPass:
@@ -118,7 +118,7 @@ def _no_windows(batch: tuple, dtype, n_samples: int) -> _WindowPass:
         worst_passed=jnp.full(batch, -jnp.inf, dtype),
         nearest=jnp.full(batch, jnp.inf, dtype),
         closest=jnp.zeros(batch, jnp.int32),
-        failing=tuple(jnp.zeros(batch, jnp.uint32) for _ in range(-(-n_samples // 32))),
+        failing=jnp.zeros(batch + (-(-n_samples // 32),), jnp.uint32),
     )
 
 
@@ -136,8 +136,8 @@ def _window_pass(lengths, world, start, goal, x, degree, n_samples, margin) -> p
                                      jnp.where(failing, -jnp.inf, carry.pending)),
             nearest=jnp.minimum(carry.nearest, carry.pending_nearest),
             closest=jnp.where(carry.pending_nearest < carry.nearest, index, carry.closest),
-            failing=tuple(word | jnp.where(index >> 5 == w, bit, jnp.uint32(0))
-                          for w, word in enumerate(carry.failing)),
+            failing=carry.failing | jnp.where(
+                index >> 5 == jnp.arange(carry.failing.shape[-1]), bit[..., None], jnp.uint32(0)),
         )
 
     def add_sample(carry, sample):
@@ -290,22 +290,19 @@ class _Lanes(NamedTuple):
     active: jax.Array  # shape=(n_lanes,), bool: a path is being bisected
     finished: jax.Array  # shape=(n_lanes,), bool: a path's verdict waits to be written
     x: jax.Array  # shape=(n_lanes, n_free)
-    windows: tuple  # n_words arrays (n_lanes,), uint32: failing windows not yet finished
+    windows: jax.Array  # shape=(n_lanes, n_words), uint32: failing windows not yet finished
     piece: _Piece  # the piece to test next
     pending: jax.Array  # shape=(n_lanes,), int32: bit l set = a right sibling waits at level l
     verdict: _Verdict  # running, per lane
 
 
-def _lowest_set_bit(words: tuple):
-    """Index of the lowest set bit over words (bit b of word w is index 32 w + b); a large
-    number where none is set. Each word has shape (n,), uint32."""
-    index = jnp.full(words[0].shape, 1 << 30, jnp.int32)
-    for w in reversed(range(len(words))):
-        word = words[w]
-        lowest = word & (~word + jnp.uint32(1))
-        trailing = jax.lax.population_count(lowest - jnp.uint32(1)).astype(jnp.int32)
-        index = jnp.where(word != 0, 32 * w + trailing, index)
-    return index
+def _lowest_set_bit(words):
+    """Index of the lowest set bit of each row of ``words`` (shape (n, n_words), uint32; bit b
+    of word w is index 32 w + b), shape (n,); a large number where none is set."""
+    lowest = words & (~words + jnp.uint32(1))
+    trailing = jax.lax.population_count(lowest - jnp.uint32(1)).astype(jnp.int32)
+    index = jnp.where(words != 0, 32 * jnp.arange(words.shape[-1]) + trailing, 1 << 30)
+    return index.min(axis=-1)
 
 
 def _empty_verdict(shape, dtype) -> _Verdict:
@@ -327,7 +324,7 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
 
     Args:
       x: all paths, shape (B, n_free).
-      failing_words: n_words arrays of shape (B,), uint32: the failing windows.
+      failing_words: shape (B, n_words), uint32: the failing windows.
       first_window: shape (B,), int32: the window to bisect first when it fails.
       work_rows: shape (B,), int32: the rows to bisect first, then anything.
       n_work: int32 scalar.
@@ -352,13 +349,11 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
         item = next_item + jnp.cumsum(idle) - 1
         take = idle & (item < n_work)
         row = jnp.where(take, work_rows[jnp.minimum(item, n_rows - 1)], lanes.row)
-        windows = tuple(jnp.where(take, words[row], lane_words)
-                        for words, lane_words in zip(failing_words, lanes.windows))
+        windows = jnp.where(take[:, None], failing_words[row], lanes.windows)
         # The window nearest an obstacle first: a witness, if any, is most likely there.
         closest = first_window[row]
-        closest_failing = functools.reduce(jnp.logical_or, [
-            (closest >> 5 == w) & ((word >> (closest & 31).astype(jnp.uint32)) & 1 == 1)
-            for w, word in enumerate(windows)])
+        word = jnp.take_along_axis(windows, (closest >> 5)[:, None], axis=1)[:, 0]
+        closest_failing = (word >> (closest & 31).astype(jnp.uint32)) & 1 == 1
         first = jnp.where(closest_failing, closest, _lowest_set_bit(windows))
         piece = _Piece(sample=jnp.where(take, first, lanes.piece.sample),
                        level=jnp.where(take, 0, lanes.piece.level),
@@ -421,10 +416,10 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
         climb_pending = lanes.pending & ~jnp.left_shift(1, deepest)
         # Or move on: to the next failing window of the path.
         window_done = lanes.pending == 0
-        remaining = tuple(jnp.where(window_done & (piece.sample >> 5 == w),
-                                    word & ~jnp.left_shift(jnp.uint32(1),
-                                                           (piece.sample & 31).astype(jnp.uint32)),
-                                    word) for w, word in enumerate(lanes.windows))
+        done_bit = jnp.left_shift(jnp.uint32(1), (piece.sample & 31).astype(jnp.uint32))
+        word = jnp.arange(lanes.windows.shape[1])
+        remaining = jnp.where(window_done[:, None] & (piece.sample[:, None] >> 5 == word),
+                              lanes.windows & ~done_bit[:, None], lanes.windows)
         next_window = _lowest_set_bit(remaining)
         path_done = lanes.active & (witness | exhausted
                                     | (~split & window_done & (next_window >= n_samples)))
@@ -433,7 +428,7 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
                              _Piece(sample=next_window, level=jnp.zeros_like(piece.level),
                                     offset=jnp.zeros_like(piece.offset)))
         pending = jnp.where(split, descend_pending, jnp.where(window_done, 0, climb_pending))
-        windows = tuple(jnp.where(split, old, new) for old, new in zip(lanes.windows, remaining))
+        windows = jnp.where(split[:, None], lanes.windows, remaining)
         lanes = _Lanes(row=lanes.row, active=lanes.active & ~path_done,
                        finished=lanes.finished | path_done, x=lanes.x, windows=windows,
                        piece=piece, pending=pending, verdict=verdict)
@@ -454,7 +449,7 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
     zeros = jnp.zeros(n_lanes, jnp.int32)
     lanes = _Lanes(row=zeros, active=jnp.zeros(n_lanes, bool),
                    finished=jnp.zeros(n_lanes, bool), x=jnp.zeros((n_lanes, x.shape[1]), dtype),
-                   windows=tuple(jnp.zeros(n_lanes, jnp.uint32) for _ in failing_words),
+                   windows=jnp.zeros((n_lanes, failing_words.shape[1]), jnp.uint32),
                    piece=_Piece(zeros, zeros, zeros), pending=zeros,
                    verdict=_empty_verdict(n_lanes, dtype))
     lanes, next_item = refill(lanes, jnp.int32(0))
@@ -490,8 +485,7 @@ def check(lengths, world, start, goal, x, degree: int, n_samples: int, certify_t
                                      (~sample_witness).sum(dtype=jnp.int32), degree,
                                      n_samples, margin)
     windows = windows._replace(nearest=jnp.where(sample_witness, nearest, windows.nearest))
-    needs_work = ~sample_witness & functools.reduce(
-        jnp.logical_or, [word != 0 for word in windows.failing])
+    needs_work = ~sample_witness & (windows.failing != 0).any(axis=1)
 
     work_rows = jnp.argsort(~needs_work, stable=True).astype(jnp.int32)
     n_work = needs_work.sum(dtype=jnp.int32)

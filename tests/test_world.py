@@ -34,7 +34,8 @@ def test_segment_separation_agrees_with_shapely_on_random_worlds(rng):
     slot_forms = jit(lambda *args: [jnp.stack(world_lib.polygon_slots(*args, exact=exact))
                                     for exact in (True, False)])
     array_forms = jit(lambda *args: [world_lib.polygon_separation_xy(*args),
-                                     world_lib.polygon_overlap_gap_xy(*args)])
+                                     world_lib.polygon_overlap_gap_xy(*args),
+                                     world_lib.polygon_separation_xy(*args, vertex_axis=True)])
     checked = 0
     for _ in range(300):
         world = random_world(rng)
@@ -59,9 +60,11 @@ def test_segment_separation_agrees_with_shapely_on_random_worlds(rng):
         assert np.all(bound[apart] <= distance[apart] + 1e-3)
         np.testing.assert_array_equal((bound < 0)[clear], hit[clear])
         coordinates = [jnp.asarray(a) for a in (start[:, 0], start[:, 1], end[:, 0], end[:, 1])]
-        for by_slot, as_array in zip(slot_forms(*coordinates, packed),
-                                     array_forms(*coordinates, packed)):
+        exact, gap, vertex_axis = array_forms(*coordinates, packed)
+        for by_slot, as_array in zip(slot_forms(*coordinates, packed), (exact, gap)):
             np.testing.assert_allclose(by_slot, as_array, rtol=1e-6, atol=1e-5)
+        # The certified check's pieces take the vertex slots as an axis: the same bits.
+        np.testing.assert_array_equal(vertex_axis, exact)
         checked += clear.sum()
     assert checked > 10_000
 
