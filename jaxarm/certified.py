@@ -417,8 +417,8 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
         # Or move on: to the next failing window of the path.
         window_done = lanes.pending == 0
         done_bit = jnp.left_shift(jnp.uint32(1), (piece.sample & 31).astype(jnp.uint32))
-        word = jnp.arange(lanes.windows.shape[1])
-        remaining = jnp.where(window_done[:, None] & (piece.sample[:, None] >> 5 == word),
+        word_index = jnp.arange(lanes.windows.shape[1])
+        remaining = jnp.where(window_done[:, None] & (piece.sample[:, None] >> 5 == word_index),
                               lanes.windows & ~done_bit[:, None], lanes.windows)
         next_window = _lowest_set_bit(remaining)
         path_done = lanes.active & (witness | exhausted

@@ -546,6 +546,7 @@ def collides(problem: Problem, x) -> jax.Array:
 
 @functools.partial(jit, static_argnums=(0, 1), storable=True)
 def _travelling_distance(degree: int, n_samples: int, start, goal, rows):
+    """``path.travelling_distance`` of rows (B, n_free) -> (B,), compiled."""
     return path.travelling_distance(start, goal, rows, degree, n_samples)
 
 

@@ -316,11 +316,11 @@ def polygon_separation_xy(sx, sy, ex, ey, world: WorldArrays, vertex_axis: bool 
     Coordinates of shape (...); returns shape (n_polygon_slots, ...).
 
     ``vertex_axis``: the distances to the edges as one array with the vertex slots as an axis
-    (the same values: a minimum is exact), rather than written out per vertex. For a few
-    coordinates this compiles to fewer kernels: the certified check's program for
-    polygon-field (4 slots of 8 vertices) compiled in 2.7-3.0 s instead of 4.0 s on one core
-    (by hand), and ran as fast. For many coordinates the written-out form is the fast one
-    (``polygon_overlap_gap_xy``)."""
+    (the same values: a minimum is exact), rather than written out per vertex. It compiles to
+    fewer kernels: the certified check's program for polygon-field (4 slots of 8 vertices, 64
+    paths) compiled in 3.1-3.2 s instead of 4.1-4.2 s on one core and ran 3-6 % faster
+    (benchmarks/RESULTS.md, "Fewer kernels in the certified check"). The sampled check with a
+    margin keeps the written-out form: with the axis it ran 3x slower on two scenes."""
     n = sx.ndim
     gap = polygon_overlap_gap_xy(sx, sy, ex, ey, world)
     vertices = jnp.asarray(world.vertices, dtype=sx.dtype)
