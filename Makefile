@@ -21,6 +21,10 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/activate
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $@
 
+$(VENV)/.installed-notebooks: $(VENV)/.installed-test
+	$(BIN)/python -m pip install --quiet -e '.[test,notebooks]'
+	touch $@
+
 demo: $(VENV)/.installed-test
 	$(BIN)/jaxarm reproduce-paper --quick --out results
 	@echo "Report: results/report.md"
@@ -28,10 +32,10 @@ demo: $(VENV)/.installed-test
 test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m "not slow"
 
-test-all: $(VENV)/.installed-test
+test-all: $(VENV)/.installed-notebooks
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
-test-slow: $(VENV)/.installed-test
+test-slow: $(VENV)/.installed-notebooks
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m slow
 
 # The quick suite on the oldest dependency versions pyproject.toml admits, in a fresh
@@ -43,7 +47,7 @@ test-oldest:
 	$(OLDEST)/bin/python -m pip install --quiet -c tests/oldest-versions.txt -e '.[test]'
 	$(OLDEST)/bin/python -m pytest -q -n 2 --dist loadfile -m "not slow"
 
-notebooks: $(VENV)/.installed-test
+notebooks: $(VENV)/.installed-notebooks
 	$(BIN)/python notebooks/execute.py
 
 docs: $(VENV)/.installed-test

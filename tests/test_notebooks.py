@@ -5,7 +5,6 @@ import pathlib
 
 import nbformat
 import pytest
-from nbclient import NotebookClient
 
 NOTEBOOKS = sorted((pathlib.Path(__file__).parent.parent / "notebooks").glob("*.ipynb"))
 
@@ -37,6 +36,8 @@ def test_notebook_is_committed_executed_with_figures_and_no_warnings(path):
 @pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_notebook_executes_and_draws_the_figures_it_was_committed_with(path, tmp_path):
+    from nbclient import NotebookClient  # the notebooks extra (make test-all installs it)
+
     committed = nbformat.read(path, as_version=4)
     notebook = nbformat.read(path, as_version=4)
     # nbclient raises CellExecutionError on the first failing cell
