@@ -52,12 +52,14 @@ def positive_scalar(field: str, value) -> float:
     return number
 
 
-def positive_int(field: str, value, minimum: int = 1) -> int:
-    """``value`` as an int >= ``minimum``, or a ValueError naming ``field``."""
+def positive_int(field: str, value, minimum: int = 1, maximum: int | None = None) -> int:
+    """``value`` as an int in [``minimum``, ``maximum``], or a ValueError naming ``field``."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise ValueError(f"{field} must be an integer, got {value!r}")
     if value < minimum:
         raise ValueError(f"{field} must be >= {minimum}, got {value!r}")
+    if maximum is not None and value > maximum:
+        raise ValueError(f"{field} must be <= {maximum}, got {value!r}")
     return int(value)
 
 

@@ -87,6 +87,7 @@ MAX_LEVELS = 22  # halvings of a sample window; offsets stay exact integers in f
 LANES = 1024  # paths bisected at once on an accelerator ...
 FEW_LANES, FEW_PATHS = 64, 2048  # ... or FEW_LANES at a time when at most FEW_PATHS need it
 WINDOW_CHUNK = 512  # paths per call of the window pass
+MAX_BUDGET = 2**28 - 1  # pieces per path: the count shares an int32 with three flags
 
 
 class CertifiedCheck(NamedTuple):
@@ -272,15 +273,29 @@ def _test_pieces(lengths, world, start, goal, x, pieces: _Piece, tables, step, m
 
 
 class _Verdict(NamedTuple):
-    """What the bisection found for one path."""
+    """What the bisection found for one path. The flags and the count share one integer: XLA's
+    CPU backend compiles a kernel for each array the loop writes, in each of its branches."""
 
-    witness: jax.Array  # bool: a piece centre closer than the margin
-    undecided: jax.Array  # bool: a piece ended within the tolerance
-    exhausted: jax.Array  # bool: the budget or the depth ran out
+    flags: jax.Array  # int32: bit 0 witness, bit 1 undecided, bit 2 exhausted; pieces tested << 3
     nearest: jax.Array  # smallest distance to an obstacle at a tested centre (cm)
     proved: jax.Array  # smallest -shortfall of a free piece (cm; + margin bounds the clearance)
     violation: jax.Array  # (shortfall + tol) * width summed over the pieces that ended open
-    tested: jax.Array  # int32: pieces tested
+
+    @property
+    def witness(self) -> jax.Array:  # bool: a piece centre closer than the margin
+        return self.flags & 1 != 0
+
+    @property
+    def undecided(self) -> jax.Array:  # bool: a piece ended within the tolerance
+        return self.flags & 2 != 0
+
+    @property
+    def exhausted(self) -> jax.Array:  # bool: the budget or the depth ran out
+        return self.flags & 4 != 0
+
+    @property
+    def tested(self) -> jax.Array:  # int32: pieces tested
+        return self.flags >> 3
 
 
 class _Lanes(NamedTuple):
@@ -288,7 +303,6 @@ class _Lanes(NamedTuple):
 
     row: jax.Array  # shape=(n_lanes,), int32: the path's row in the batch
     active: jax.Array  # shape=(n_lanes,), bool: a path is being bisected
-    finished: jax.Array  # shape=(n_lanes,), bool: a path's verdict waits to be written
     x: jax.Array  # shape=(n_lanes, n_free)
     windows: jax.Array  # shape=(n_lanes, n_words), uint32: failing windows not yet finished
     piece: _Piece  # the piece to test next
@@ -301,15 +315,14 @@ def _lowest_set_bit(words):
     of word w is index 32 w + b), shape (n,); a large number where none is set."""
     lowest = words & (~words + jnp.uint32(1))
     trailing = jax.lax.population_count(lowest - jnp.uint32(1)).astype(jnp.int32)
-    index = jnp.where(words != 0, 32 * jnp.arange(words.shape[-1]) + trailing, 1 << 30)
-    return index.min(axis=-1)
+    word = jnp.arange(words.shape[-1], dtype=jnp.int32)
+    index = jnp.where(words != 0, 32 * word + trailing, 1 << 30)
+    return index.min(axis=-1)  # int32 with 64-bit types on too: the loop carries it
 
 
 def _empty_verdict(shape, dtype) -> _Verdict:
-    return _Verdict(witness=jnp.zeros(shape, bool), undecided=jnp.zeros(shape, bool),
-                    exhausted=jnp.zeros(shape, bool), nearest=jnp.full(shape, jnp.inf, dtype),
-                    proved=jnp.full(shape, jnp.inf, dtype), violation=jnp.zeros(shape, dtype),
-                    tested=jnp.zeros(shape, jnp.int32))
+    return _Verdict(flags=jnp.zeros(shape, jnp.int32), nearest=jnp.full(shape, jnp.inf, dtype),
+                    proved=jnp.full(shape, jnp.inf, dtype), violation=jnp.zeros(shape, dtype))
 
 
 def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_rows, n_work,
@@ -360,7 +373,7 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
                        offset=jnp.where(take, 0, lanes.piece.offset))
         fresh = _empty_verdict(take.shape, dtype)
         verdict = jax.tree.map(lambda new, old: jnp.where(take, new, old), fresh, lanes.verdict)
-        lanes = _Lanes(row=row, active=lanes.active | take, finished=lanes.finished,
+        lanes = _Lanes(row=row, active=lanes.active | take,
                        x=jnp.where(take[:, None], x[row], lanes.x), windows=windows, piece=piece,
                        pending=jnp.where(take, 0, lanes.pending), verdict=verdict)
         return lanes, jnp.minimum(next_item + idle.sum(dtype=jnp.int32), n_work)
@@ -390,15 +403,14 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
         count = verdict.tested + tested
         exhausted = split & ((piece.level >= MAX_LEVELS) | (count >= budget))
         split &= ~exhausted
+        found = (witness.astype(jnp.int32) | undecided.astype(jnp.int32) << 1
+                 | exhausted.astype(jnp.int32) << 2)
         verdict = _Verdict(
-            witness=verdict.witness | witness,
-            undecided=verdict.undecided | undecided,
-            exhausted=verdict.exhausted | exhausted,
+            flags=(verdict.flags | found) + (tested.astype(jnp.int32) << 3),
             nearest=jnp.minimum(verdict.nearest, jnp.where(tested, nearest, jnp.inf)),
             proved=jnp.minimum(verdict.proved, jnp.where(tested & free, -shortfall, jnp.inf)),
             violation=verdict.violation + jnp.where(witness | undecided,
-                                                    (shortfall + tol) * (2 * radius), 0.0),
-            tested=count)
+                                                    (shortfall + tol) * (2 * radius), 0.0))
         # Descend: to the level where the speed bound should fit inside the clearance
         # (it shrinks about linearly with the radius), leaving right siblings pending.
         clear = jnp.maximum(nearest - margin, tol)
@@ -429,33 +441,28 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
                                     offset=jnp.zeros_like(piece.offset)))
         pending = jnp.where(split, descend_pending, jnp.where(window_done, 0, climb_pending))
         windows = jnp.where(split[:, None], lanes.windows, remaining)
-        lanes = _Lanes(row=lanes.row, active=lanes.active & ~path_done,
-                       finished=lanes.finished | path_done, x=lanes.x, windows=windows,
-                       piece=piece, pending=pending, verdict=verdict)
-        # Writing results and refilling lanes are gathers and scatters over every lane:
-        # done only once an eighth of the lanes wait, or none is busy.
-        n_idle = n_lanes - lanes.active.sum(dtype=jnp.int32)
-        return jax.lax.cond((8 * n_idle >= n_lanes) | ~lanes.active.any(), flush,
-                            lambda *state: state, lanes, next_item, out)
-
-    def flush(lanes: _Lanes, next_item, out):
-        """Write the finished lanes' verdicts and give the idle lanes new paths."""
-        target = jnp.where(lanes.finished, lanes.row, n_rows)
-        out = jax.tree.map(lambda o, v: o.at[target].set(v, mode="drop"), out, lanes.verdict)
-        lanes, next_item = refill(lanes._replace(finished=jnp.zeros_like(lanes.finished)),
-                                  next_item)
+        # Finished paths' verdicts written and idle lanes refilled at every step: doing it
+        # only once an eighth of the lanes waited (a branch) ran no faster on CPU and compiled
+        # every lane array's kernels a second time (benchmarks/RESULTS.md, "The bisection loop
+        # writes each lane array once per step").
+        target = jnp.where(path_done, lanes.row, n_rows)
+        out = jax.tree.map(lambda o, v: o.at[target].set(v, mode="drop"), out, verdict)
+        lanes = _Lanes(row=lanes.row, active=lanes.active & ~path_done, x=lanes.x,
+                       windows=windows, piece=piece, pending=pending, verdict=verdict)
+        lanes, next_item = refill(lanes, next_item)
         return lanes, next_item, out
 
     zeros = jnp.zeros(n_lanes, jnp.int32)
     lanes = _Lanes(row=zeros, active=jnp.zeros(n_lanes, bool),
-                   finished=jnp.zeros(n_lanes, bool), x=jnp.zeros((n_lanes, x.shape[1]), dtype),
+                   x=jnp.zeros((n_lanes, x.shape[1]), dtype),
                    windows=jnp.zeros((n_lanes, failing_words.shape[1]), jnp.uint32),
                    piece=_Piece(zeros, zeros, zeros), pending=zeros,
                    verdict=_empty_verdict(n_lanes, dtype))
-    lanes, next_item = refill(lanes, jnp.int32(0))
-    busy = lambda state: state[0].active.any() | state[0].finished.any()  # noqa: E731
+    # The lanes start idle: the first step tests nothing and refills them (a refill of its
+    # own here compiled another copy of every lane array's kernels).
+    busy = lambda state: state[0].active.any() | (state[1] < n_work)  # noqa: E731
     _, _, out = jax.lax.while_loop(busy, test_and_advance,
-                                   (lanes, next_item, _empty_verdict(n_rows, dtype)))
+                                   (lanes, jnp.int32(0), _empty_verdict(n_rows, dtype)))
     return out
 
 

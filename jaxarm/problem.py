@@ -101,7 +101,8 @@ class Problem:
       certify_tol: the certified check's tolerance (cm): every motion whose clearance exceeds
         the margin by at least this much is certified free.
       certify_budget: most pieces the certified check may test per path before it gives up
-        (the path then counts as colliding and ``certify`` reports it exhausted).
+        (the path then counts as colliding and ``certify`` reports it exhausted); at most
+        ``2**28 - 1``.
       joint_limits: one ``(low, high)`` pair per joint (rad), or None. A path that leaves a
         range at any r counts as colliding (see ``jaxarm.joint_limits``: at the samples in
         sampled mode, for every r in certified mode).
@@ -154,7 +155,7 @@ class Problem:
         if self.certify_tol <= 0:
             raise ValueError(f"certify_tol must be > 0 (cm), got {self.certify_tol!r}")
         set_field("certify_budget", positive_int("certify_budget", self.certify_budget,
-                                                 minimum=1))
+                                                 minimum=1, maximum=certified_lib.MAX_BUDGET))
         low, high = (self._bound(name) for name in ("init_low", "init_high"))
         set_field("init_low", low)
         set_field("init_high", high)
