@@ -87,7 +87,9 @@ MAX_LEVELS = 22  # halvings of a sample window; offsets stay exact integers in f
 LANES = 1024  # paths bisected at once on an accelerator ...
 FEW_LANES, FEW_PATHS = 64, 2048  # ... or FEW_LANES at a time when at most FEW_PATHS need it
 WINDOW_CHUNK = 512  # paths per call of the window pass
-MAX_BUDGET = 2**28 - 1  # pieces per path: the count shares an int32 with three flags
+# Pieces per path: the count shares an int32 with three flags, and a path can test a few more
+# than its budget (the first piece of each failing window left, and the pending siblings).
+MAX_BUDGET = 2**27
 
 
 class CertifiedCheck(NamedTuple):

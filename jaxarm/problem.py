@@ -102,7 +102,7 @@ class Problem:
         the margin by at least this much is certified free.
       certify_budget: most pieces the certified check may test per path before it gives up
         (the path then counts as colliding and ``certify`` reports it exhausted); at most
-        ``2**28 - 1``.
+        ``2**27``.
       joint_limits: one ``(low, high)`` pair per joint (rad), or None. A path that leaves a
         range at any r counts as colliding (see ``jaxarm.joint_limits``: at the samples in
         sampled mode, for every r in certified mode).

@@ -171,7 +171,7 @@ def test_margin_keeps_the_arm_away(case2):
     ("certify_tol", 0.0, "certify_tol must be > 0"),
     ("certify_tol", float("inf"), "certify_tol must be finite"),
     ("certify_budget", 0, "certify_budget must be >= 1"),
-    ("certify_budget", 2**28, "certify_budget must be <= 268435455, got 268435456"),
+    ("certify_budget", 2**27 + 1, "certify_budget must be <= 134217728, got 134217729"),
 ])
 def test_bad_certification_settings_name_the_field(case2, field, value, message):
     with pytest.raises(ValueError, match=message):
