@@ -63,8 +63,10 @@ def test_segment_separation_agrees_with_shapely_on_random_worlds(rng):
         exact, gap, vertex_axis = array_forms(*coordinates, packed)
         for by_slot, as_array in zip(slot_forms(*coordinates, packed), (exact, gap)):
             np.testing.assert_allclose(by_slot, as_array, rtol=1e-6, atol=1e-5)
-        # The certified check's pieces take the vertex slots as an axis: the same bits.
-        np.testing.assert_array_equal(vertex_axis, exact)
+        # The certified check's pieces take the vertex slots as an axis: the same numbers up to
+        # how XLA rounds each edge's distance (the same bits on jax 0.10.2; up to 2 ulps apart
+        # in 255 of 34,080 values on jax 0.8.0, make test-oldest).
+        np.testing.assert_allclose(vertex_axis, exact, rtol=1e-6, atol=1e-5)
         checked += clear.sum()
     assert checked > 10_000
 
