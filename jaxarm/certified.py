@@ -443,10 +443,11 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
                                     offset=jnp.zeros_like(piece.offset)))
         pending = jnp.where(split, descend_pending, jnp.where(window_done, 0, climb_pending))
         windows = jnp.where(split[:, None], lanes.windows, remaining)
-        # Finished paths' verdicts written and idle lanes refilled at every step: doing it
-        # only once an eighth of the lanes waited (a branch) ran no faster on CPU and compiled
-        # every lane array's kernels a second time (benchmarks/RESULTS.md, "The bisection loop
-        # writes each lane array once per step").
+        # Finished paths' verdicts written and idle lanes refilled at every step. Doing it
+        # only once an eighth of the lanes waited (a branch) compiled every lane array's
+        # kernels a second time, for about the same speed on CPU: `certify` as fast or slower,
+        # a 100-restart solve 1-3 % faster on paper-case-1, 6 % slower on death-trap
+        # (benchmarks/RESULTS.md, "The bisection loop writes each lane array once per step").
         target = jnp.where(path_done, lanes.row, n_rows)
         out = jax.tree.map(lambda o, v: o.at[target].set(v, mode="drop"), out, verdict)
         lanes = _Lanes(row=lanes.row, active=lanes.active & ~path_done, x=lanes.x,
