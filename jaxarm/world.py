@@ -318,11 +318,11 @@ def polygon_separation_xy(sx, sy, ex, ey, world: WorldArrays, vertex_axis: bool 
     ``vertex_axis``: the distances to the edges as one array with the vertex slots as an axis
     rather than written out per vertex: the same values up to how XLA rounds an edge's
     distance in each program (a minimum is exact). The same bits on jax 0.10.2; up to 2 float32
-    ulps apart in 255 of 34,080 distances on jax 0.8.0 (tests/test_world.py's random worlds). It compiles to
-    fewer kernels: the certified check's program for polygon-field (4 slots of 8 vertices, 64
-    paths) compiled in 3.1-3.2 s instead of 4.1-4.2 s on one core and ran 3-6 % faster
-    (benchmarks/RESULTS.md, "Fewer kernels in the certified check"). The sampled check with a
-    margin keeps the written-out form: with the axis it ran 3x slower on two scenes."""
+    ulps apart in 255 of 34,080 distances on jax 0.8.0 (tests/test_world.py's random worlds).
+    It compiles to fewer kernels: the certified check's program for polygon-field (4 slots of
+    8 vertices, 64 paths) compiled in 3.1-3.2 s instead of 4.1-4.2 s on one core and ran 3-6 %
+    faster (benchmarks/RESULTS.md, "Fewer kernels in the certified check"). The sampled check
+    with a margin keeps the written-out form: with the axis it ran 3x slower on two scenes."""
     n = sx.ndim
     gap = polygon_overlap_gap_xy(sx, sy, ex, ey, world)
     vertices = jnp.asarray(world.vertices, dtype=sx.dtype)
