@@ -41,9 +41,10 @@ Three stages, all batched over paths.
    choice compiles the loop twice; it is untested on a GPU). Measured by hand on CPU,
    paper-case-1: 1e4 random paths, 26 to bisect, 11 ms with 64 lanes against 78 ms with 1024;
    4,687 near-optimal paths, 468 ms against 355 ms; a 1000-seed study 23 s against 19 s, but
-   each certified search program took about 4 s longer to compile with both. Each path may
-   test at most ``budget`` pieces, and pieces stop at ``MAX_LEVELS`` halvings; a path that needs
-   more is *exhausted*: neither free nor colliding, and counted (``Certificate.exhausted``).
+   each certified search program took about 4 s longer to compile with both. No piece of a
+   path is split once the path has tested ``budget`` pieces (pieces that need no split are still
+   tested), and pieces stop at ``MAX_LEVELS`` halvings; a path that needs a split past either is
+   *exhausted*: neither free nor colliding, and counted (``Certificate.exhausted``).
 
 Pieces are located by integers (sample, level, offset) and expanded about their sample with
 float64 tables of the basis derivatives, so a piece far below float32's spacing of r still has
@@ -343,7 +344,7 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
       first_window: shape (B,), int32: the window to bisect first when it fails.
       work_rows: shape (B,), int32: the rows to bisect first, then anything.
       n_work: int32 scalar.
-      budget: most pieces tested per path.
+      budget: pieces a path tests before none of its pieces is split.
       n_lanes: paths in flight.
 
     Returns:
@@ -478,7 +479,7 @@ def check(lengths, world, start, goal, x, degree: int, n_samples: int, certify_t
       x: free parameters, shape (B, n_free).
       degree, n_samples: static sizes.
       certify_tol, margin: cm, scalars (may be traced).
-      budget: most pieces tested per path (static).
+      budget: pieces a path tests before none of its pieces is split (static).
 
     Returns:
       ``CertifiedCheck`` of arrays of shape (B,).

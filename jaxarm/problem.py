@@ -100,9 +100,10 @@ class Problem:
       margin: clearance (cm) every link must keep from every obstacle; 0 allows grazing.
       certify_tol: the certified check's tolerance (cm): every motion whose clearance exceeds
         the margin by at least this much is certified free.
-      certify_budget: most pieces the certified check may test per path before it gives up
-        (the path then counts as colliding and ``certify`` reports it exhausted); at most
-        ``2**27``.
+      certify_budget: pieces the certified check tests per path before it splits no more: a
+        piece that needs splitting after that makes the path exhausted (it counts as
+        colliding, and ``certify`` reports it). Pieces that need no split are still tested,
+        so a path may test a few more. At most ``2**27``.
       joint_limits: one ``(low, high)`` pair per joint (rad), or None. A path that leaves a
         range at any r counts as colliding (see ``jaxarm.joint_limits``: at the samples in
         sampled mode, for every r in certified mode).
