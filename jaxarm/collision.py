@@ -23,6 +23,7 @@ from __future__ import annotations
 import functools
 import math
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -46,6 +47,14 @@ def penetration(lengths, world, theta):
                       for link in links], axis=-2)
 
 
+# Written out, XLA fuses every link's exact polygon distances into one kernel, which ran about
+# 10x slower than the links apart once it held more than about 64 link-edge pairs (3 links and
+# 4 polygons of 6 or 8 vertex slots; 4 of 5 were still fast). One link at a time (a scan) was
+# slower below that: 13-36 % in 100-restart searches on narrow-gap, mixed-clutter and death-trap
+# (benchmarks/RESULTS.md, "The sampled check with a margin on polygon-field").
+UNROLLED_LINK_EDGES = 64
+
+
 def posture_penetration(lengths, world, theta: list, margin=0.0, exact: bool = False):
     """How far every link is inside the margin around every obstacle, summed, at one posture
     per path.
@@ -58,12 +67,30 @@ def posture_penetration(lengths, world, theta: list, margin=0.0, exact: bool = F
 
     Returns:
       Array of shape (...,), >= 0, zero iff every link keeps the margin from every obstacle.
+
+    With exact distances to more than ``UNROLLED_LINK_EDGES`` polygon edges (links x polygon
+    slots x vertex slots) the links are taken one at a time, in a ``lax.scan``.
     """
+    links = link_endpoints(lengths, theta)
     total = jnp.zeros_like(theta[0])
-    for link in link_endpoints(lengths, theta):
-        for separation in (world_lib.circle_slots(*link, world)
-                           + world_lib.polygon_slots(*link, world, exact)):
-            total = total + jnp.maximum(margin - separation, 0.0)
+    if exact and len(links) * world.vertices.shape[0] * world.vertices.shape[1] > (
+            UNROLLED_LINK_EDGES):
+        stacked = tuple(jnp.stack(coordinate) for coordinate in zip(*links))
+        total, _ = jax.lax.scan(
+            lambda total, link: (_add_link_penetration(total, link, world, margin, exact), None),
+            total, stacked)
+        return total
+    for link in links:
+        total = _add_link_penetration(total, link, world, margin, exact)
+    return total
+
+
+def _add_link_penetration(total, link, world, margin, exact: bool):
+    """``total`` plus how far one link (its end points' coordinates) is inside the margin
+    around every obstacle slot, added slot by slot."""
+    for separation in (world_lib.circle_slots(*link, world)
+                       + world_lib.polygon_slots(*link, world, exact)):
+        total = total + jnp.maximum(margin - separation, 0.0)
     return total
 
 

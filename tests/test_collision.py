@@ -11,7 +11,7 @@ import jaxarm
 from jaxarm import collision, path
 from jaxarm.oracle import link_segments
 
-from oracles import oracle_path_collides, random_world_problems
+from oracles import oracle_path_collides, random_world_problems, shapely_obstacles
 
 
 def test_sampled_check_agrees_with_shapely_on_the_same_samples(rng):
@@ -25,6 +25,36 @@ def test_sampled_check_agrees_with_shapely_on_the_same_samples(rng):
         agreed += decided.sum()
     assert agreed > 900
 
+
+
+
+@pytest.mark.parametrize("name", ["mixed-clutter", "polygon-field"])
+def test_sampled_check_with_a_margin_agrees_with_shapely_distances(rng, name):
+    """Exact distances (a margin): the violation is the deepest sample's sum, over links and
+    obstacles, of how far each link is inside the margin. polygon-field has more link-edge
+    pairs than ``collision.UNROLLED_LINK_EDGES`` (its links are taken one at a time),
+    mixed-clutter fewer."""
+    margin = 2.0
+    problem = jaxarm.load_scenario(name, collision="sampled").replace(margin=margin,
+                                                                       n_samples=21)
+    world = problem.arrays.world
+    scanned = len(problem.arm.lengths) * np.prod(world.vertices.shape[:2])
+    assert (scanned > collision.UNROLLED_LINK_EDGES) == (name == "polygon-field")
+    x = rng.uniform(problem.init_low, problem.init_high, (300, problem.n_free))
+    segments = link_segments(problem, x, problem.n_samples)  # (paths, samples, links, 2, 2)
+    lines = shapely.linestrings(segments.reshape(-1, 2, 2))
+    circles, polygons = shapely_obstacles(problem.world)
+    distance = np.stack([shapely.distance(lines, centre) - radius for centre, radius in circles]
+                        + [shapely.distance(lines, polygon) for polygon in polygons], axis=-1)
+    distance = distance.reshape(*segments.shape[:3], -1)
+    inside = np.maximum(margin - distance, 0).sum(axis=(2, 3)).max(axis=1)
+    overlap = (distance <= 0).any(axis=(1, 2, 3))  # shapely: 0 inside a polygon, no depth
+    ours = np.asarray(jaxarm.violation(problem, x))
+    np.testing.assert_allclose(ours[~overlap], inside[~overlap], atol=2e-4)
+    assert np.all(ours[overlap] > 0)
+    # most random paths cross an obstacle: 9 (mixed-clutter) and 15 (polygon-field) come within
+    # the margin without touching one, 34 and 46 stay clear of it
+    assert np.sum(~overlap & (inside > 0)) >= 5 and np.sum(inside == 0) >= 20
 
 def test_violation_is_the_deepest_penetration_found_at_a_sample(rng):
     """Circles only, where shapely's distances give depths: sampled, the depths summed over
