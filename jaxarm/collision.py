@@ -47,11 +47,12 @@ def penetration(lengths, world, theta):
                       for link in links], axis=-2)
 
 
-# Written out, XLA fuses every link's exact polygon distances into one kernel, which ran about
-# 10x slower than the links apart once it held more than about 64 link-edge pairs (3 links and
-# 4 polygons of 6 or 8 vertex slots; 4 of 5 were still fast). One link at a time (a scan) was
-# slower below that: 13-36 % in 100-restart searches on narrow-gap, mixed-clutter and death-trap
-# (benchmarks/RESULTS.md, "The sampled check with a margin on polygon-field").
+# Written out, XLA fuses every link's exact polygon distances into one kernel. With 3 links it
+# ran about 10x slower than the links apart for 4 polygon slots of 6, 7 or 8 vertex slots and
+# for 8 of 4 (72-96 link-edge pairs), not for 4 of 5, 6 of 4 or 3 of 8 (60-72). One link at a
+# time (a scan) was slower on small worlds: 13-36 % in 100-restart searches on narrow-gap,
+# mixed-clutter and death-trap (benchmarks/RESULTS.md, "The sampled check with a margin on
+# polygon-field").
 UNROLLED_LINK_EDGES = 64
 
 
@@ -68,8 +69,8 @@ def posture_penetration(lengths, world, theta: list, margin=0.0, exact: bool = F
     Returns:
       Array of shape (...,), >= 0, zero iff every link keeps the margin from every obstacle.
 
-    With exact distances to more than ``UNROLLED_LINK_EDGES`` polygon edges (links x polygon
-    slots x vertex slots) the links are taken one at a time, in a ``lax.scan``.
+    With exact distances and more than ``UNROLLED_LINK_EDGES`` link-edge pairs (links x polygon
+    slots x vertex slots), the links are taken one at a time, in a ``lax.scan``.
     """
     links = link_endpoints(lengths, theta)
     total = jnp.zeros_like(theta[0])

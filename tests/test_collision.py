@@ -26,8 +26,6 @@ def test_sampled_check_agrees_with_shapely_on_the_same_samples(rng):
     assert agreed > 900
 
 
-
-
 @pytest.mark.parametrize("name", ["mixed-clutter", "polygon-field"])
 def test_sampled_check_with_a_margin_agrees_with_shapely_distances(rng, name):
     """Exact distances (a margin): the violation is the deepest sample's sum, over links and
@@ -55,6 +53,7 @@ def test_sampled_check_with_a_margin_agrees_with_shapely_distances(rng, name):
     # most random paths cross an obstacle: 9 (mixed-clutter) and 15 (polygon-field) come within
     # the margin without touching one, 34 and 46 stay clear of it
     assert np.sum(~overlap & (inside > 0)) >= 5 and np.sum(inside == 0) >= 20
+
 
 def test_violation_is_the_deepest_penetration_found_at_a_sample(rng):
     """Circles only, where shapely's distances give depths: sampled, the depths summed over
