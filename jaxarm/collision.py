@@ -56,6 +56,11 @@ def penetration(lengths, world, theta):
 UNROLLED_LINK_EDGES = 64
 
 
+def link_edge_pairs(n_links: int, world) -> int:
+    """Links x polygon slots x vertex slots: the exact distances one posture's check takes."""
+    return n_links * world.vertices.shape[0] * world.vertices.shape[1]
+
+
 def posture_penetration(lengths, world, theta: list, margin=0.0, exact: bool = False):
     """How far every link is inside the margin around every obstacle, summed, at one posture
     per path.
@@ -69,13 +74,12 @@ def posture_penetration(lengths, world, theta: list, margin=0.0, exact: bool = F
     Returns:
       Array of shape (...,), >= 0, zero iff every link keeps the margin from every obstacle.
 
-    With exact distances and more than ``UNROLLED_LINK_EDGES`` link-edge pairs (links x polygon
-    slots x vertex slots), the links are taken one at a time, in a ``lax.scan``.
+    With exact distances and more than ``UNROLLED_LINK_EDGES`` link-edge pairs
+    (``link_edge_pairs``), the links are taken one at a time, in a ``lax.scan``.
     """
     links = link_endpoints(lengths, theta)
     total = jnp.zeros_like(theta[0])
-    if exact and len(links) * world.vertices.shape[0] * world.vertices.shape[1] > (
-            UNROLLED_LINK_EDGES):
+    if exact and link_edge_pairs(len(links), world) > UNROLLED_LINK_EDGES:
         stacked = tuple(jnp.stack(coordinate) for coordinate in zip(*links))
         total, _ = jax.lax.scan(
             lambda total, link: (_add_link_penetration(total, link, world, margin, exact), None),

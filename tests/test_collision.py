@@ -35,9 +35,8 @@ def test_sampled_check_with_a_margin_agrees_with_shapely_distances(rng, name):
     margin = 2.0
     problem = jaxarm.load_scenario(name, collision="sampled").replace(margin=margin,
                                                                        n_samples=21)
-    world = problem.arrays.world
-    scanned = len(problem.arm.lengths) * np.prod(world.vertices.shape[:2])
-    assert (scanned > collision.UNROLLED_LINK_EDGES) == (name == "polygon-field")
+    pairs = collision.link_edge_pairs(len(problem.arm.lengths), problem.arrays.world)
+    assert (pairs > collision.UNROLLED_LINK_EDGES) == (name == "polygon-field")
     x = rng.uniform(problem.init_low, problem.init_high, (300, problem.n_free))
     segments = link_segments(problem, x, problem.n_samples)  # (paths, samples, links, 2, 2)
     lines = shapely.linestrings(segments.reshape(-1, 2, 2))
