@@ -5,6 +5,7 @@ import pytest
 
 import jaxarm
 from jaxarm import plot, study
+from jaxarm.arm import joint_positions
 
 from sizes import SMALL
 
@@ -48,6 +49,22 @@ def test_figures_explain_themselves(tmp_path, case2):
     assert len(ax.collections) == 6  # one 95 % band per method
     band = ax.collections[0].get_paths()[0].vertices[:, 1]
     assert band.min() >= 0 and band.max() <= 1 and "3 seeds" in ax.get_title()
+
+
+def test_the_drawn_arm_is_the_path_the_api_computes(case2):
+    """The figures compute the path in one compiled program; the lines they draw are the
+    joint angles and positions of ``jaxarm.joint_path`` and ``joint_positions``."""
+    x = np.array([66.7388, -28.1028, -9.8855], np.float32)
+    r = np.linspace(0.0, 1.0, 5)
+    theta = np.asarray(jaxarm.joint_path(case2, x, r))
+    positions = np.asarray(joint_positions(case2.arm.lengths, theta))
+    lines = plot.plot_motion(case2, x, n_postures=5).axes[0].get_lines()
+    for line, expected in zip(lines[:5], positions):
+        np.testing.assert_allclose(line.get_xydata(), expected, atol=1e-4)
+    curves = plot.plot_joint_angles(case2, x).axes[0].get_lines()
+    dense = np.asarray(jaxarm.joint_path(case2, x, np.linspace(0.0, 1.0, 201)))
+    for k, curve in enumerate(curves):
+        np.testing.assert_allclose(curve.get_ydata(), dense[:, k], rtol=1e-6, atol=1e-6)
 
 
 def test_plots_reject_what_they_cannot_draw(tmp_path, case2):
