@@ -184,14 +184,14 @@ def test_a_margin_the_start_posture_breaks_is_an_error(case2):
 
 
 def test_certified_is_the_default_and_sampled_results_say_so():
+    """(A certified search: tests/test_search.py.)"""
     assert jaxarm.load_scenario("paper-case-1").collision == "certified"
     case2 = jaxarm.load_scenario("paper-case-2")
     assert case2.collision == "certified"
     sampled = jaxarm.solve(case2.replace(collision="sampled"), "A", n_restarts=2, n_particles=8,
                            n_iters=12, constraint="feasibility")
-    if sampled.feasible and not sampled.certified:
-        assert "not certified" in sampled.summary()
-    certified = jaxarm.solve(case2, "A", n_restarts=2, n_particles=8, n_iters=12,
-                             constraint="feasibility")
-    assert certified.feasible == certified.certified
-    assert bool(jaxarm.certify(case2, certified.best_x).free) == certified.feasible
+    assert sampled.feasible  # this seed's best path is free at the samples ...
+    assert sampled.certified == bool(jaxarm.certify(case2, sampled.best_x).free)  # ... and here
+    assert ("not certified" in sampled.summary()) == (not sampled.certified)
+    # a sampled answer the certified check does not prove free says so
+    assert "not certified" in sampled._replace(certified=False).summary()

@@ -41,9 +41,11 @@ def test_result_fields_are_consistent(case2):
 
 def test_certified_search_returns_certified_paths(case2):
     # The sizes of the printed-answer test below: one search program (the rule is data).
-    result = jaxarm.solve(case2.replace(collision="certified"), "A", n_restarts=2,
-                          constraint="feasibility")
+    certified = case2.replace(collision="certified")
+    result = jaxarm.solve(certified, "A", n_restarts=2, constraint="feasibility")
     assert result.feasible and result.certified and result.collision == "certified"
+    assert bool(jaxarm.certify(certified, result.best_x).free)
+    assert "not certified" not in result.summary()
 
 
 @pytest.mark.parametrize(
