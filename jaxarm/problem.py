@@ -582,7 +582,11 @@ def joint_path(problem: Problem, x, r, order: int = 0) -> jax.Array:
         if r.ndim != 1 or not np.all((r >= 0.0) & (r <= 1.0)):
             raise ValueError(f"r must be a 1-D array of normalised times in [0, 1], got {r!r}")
     basis = path.basis_values(problem.degree, r, order)
-    return path.joint_angles(problem.arrays.start, problem.arrays.goal, x, basis, order)
+    return _joint_angles(problem.arrays.start, problem.arrays.goal, x, basis, order=order)
+
+
+# One program per shape: run op by op, each new shape compiled about 25 small programs.
+_joint_angles = jit(path.joint_angles, static_argnames="order")
 
 
 def coefficients(problem: Problem, x) -> jax.Array:
