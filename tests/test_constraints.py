@@ -74,9 +74,10 @@ def test_the_swarm_scores_every_personal_best_under_the_rule_of_the_moment():
     config = pso.PRESETS["A"]
     swarm = pso.swarm(config.params(), config.rules(), measure, -jnp.ones(2), jnp.ones(2),
                       n_particles=8, n_iters=20, constraint="epsilon")
-    state, _ = swarm.init(jax.random.key(0))
+    state, _ = jax.jit(swarm.init)(jax.random.key(0))
+    step = jax.jit(swarm.step)  # one program (op by op: 84 small ones)
     for t in range(1, 21):
-        state, info = swarm.step(jax.random.key(t), state, t)
+        state, info = step(jax.random.key(t), state, t)
         expected = constraints.score("epsilon", state.rule, state.best, t, 20)
         np.testing.assert_array_equal(np.asarray(state.best_score), np.asarray(expected))
         assert int(state.global_index) == int(np.argmax(np.asarray(state.best_score)))
