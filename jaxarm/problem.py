@@ -564,7 +564,8 @@ def travelling_distance(problem: Problem, x) -> jax.Array:
 
 
 def joint_path(problem: Problem, x, r, order: int = 0) -> jax.Array:
-    """Joint angles (or their ``order``-th derivative with respect to r) along a path.
+    """Joint angles (or their ``order``-th derivative with respect to r) along a path, computed
+    by one compiled program per shape of x and r.
 
     Args:
       x: free parameters, shape (..., n_free).
@@ -585,7 +586,8 @@ def joint_path(problem: Problem, x, r, order: int = 0) -> jax.Array:
     return _joint_angles(problem.arrays.start, problem.arrays.goal, x, basis, order=order)
 
 
-# One program per shape: run op by op, each new shape compiled about 25 small programs.
+# One program per shape: run op by op, a call with a new shape compiled 8-12 small programs
+# (0.34-0.41 s, against 0.07-0.09 s compiled whole, in a fresh process).
 _joint_angles = jit(path.joint_angles, static_argnames="order")
 
 
