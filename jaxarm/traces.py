@@ -14,7 +14,9 @@ of jax, jaxlib, numpy, optax and evosax, the backend and the JAX settings that c
 constant) are not seen, as ``jax.jit``'s own cache does not see them: call
 ``jaxarm.traces.keep_in(None)`` before patching. Calls that cannot be keyed that way run as
 plain ``jax.jit``: a static argument without a stable ``repr`` (a custom optax optimizer, say),
-several devices or processes, arguments that are not arrays or numbers. A program runs through
+an array sharded over several devices or processes (the restarts' ids when there are several;
+the other programs, on one device, are stored as with one), arguments that are not arrays or
+numbers. A program runs through
 ``Exported.call`` whether it was just traced or loaded, so XLA compiles the same module either
 way (and finds it in the compilation cache the second time). A program ``jax.export`` refuses
 (a custom call it does not allow, say) runs as plain ``jax.jit``, with a warning. The files are
@@ -85,8 +87,8 @@ def signature(fun: Callable) -> inspect.Signature:
 
 def split_call(fun: Callable, static_names: frozenset, args: tuple, kwargs: dict) -> Call | None:
     """``fun(*args, **kwargs)`` as static values and array leaves, or None when it cannot be
-    keyed (a static value without a stable repr, a leaf that is not an array or a number).
-    Arrays are on one device: ``usable`` is false otherwise."""
+    keyed (a static value without a stable repr, a leaf that is not an array or a number, an
+    array sharded over several devices or processes)."""
     try:
         bound = signature(fun).bind(*args, **kwargs)
     except TypeError:
@@ -101,6 +103,8 @@ def split_call(fun: Callable, static_names: frozenset, args: tuple, kwargs: dict
     for leaf in leaves:
         if not isinstance(leaf, (np.ndarray, np.generic, jax.Array, bool, int, float)):
             return None
+        if isinstance(leaf, jax.Array) and len(leaf.sharding.device_set) != 1:
+            return None  # sharded over devices or processes: traced as usual
         aval = jax.typeof(leaf)
         avals.append((tuple(aval.shape), aval.dtype.name, bool(aval.weak_type)))
     return Call(statics, leaves, in_tree, tuple(avals))
@@ -116,9 +120,9 @@ def _stable(value) -> bool:
 
 
 def usable() -> bool:
-    """Whether calls may go through stored programs now: a directory is set and JAX runs on one
-    device in one process (sharded programs are traced as usual)."""
-    return _directory is not None and jax.process_count() == 1 and jax.device_count() == 1
+    """Whether calls may go through stored programs now: a directory is set (``split_call``
+    leaves sharded calls to ``jax.jit``)."""
+    return _directory is not None
 
 
 def stored_program(fun: Callable, label: str, call: Call, compiler_options) -> Stored | None:
