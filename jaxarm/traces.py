@@ -16,12 +16,12 @@ constant) are not seen, as ``jax.jit``'s own cache does not see them: call
 plain ``jax.jit``: a static argument without a stable ``repr`` (a custom optax optimizer, say),
 an array sharded over several devices or processes (the restarts' ids when there are several;
 the other programs, on one device, are stored as with one), arguments that are not arrays or
-numbers. A program runs through
-``Exported.call`` whether it was just traced or loaded, so XLA compiles the same module either
-way (and finds it in the compilation cache the second time). A program ``jax.export`` refuses
-(a custom call it does not allow, say) runs as plain ``jax.jit``, with a warning. The files are
-read with ``pickle`` (the result's tree structure beside the program): like XLA's own cache,
-which holds executables, the folder should be one only you can write to.
+numbers. A program runs through ``Exported.call`` whether it was just traced or loaded, so XLA
+compiles the same module either way (and finds it in the compilation cache the second time). A
+program ``jax.export`` refuses (a custom call it does not allow, say) runs as plain
+``jax.jit``, with a warning. The files are read with ``pickle`` (the result's tree structure
+beside the program): like XLA's own cache, which holds executables, the folder should be one
+only you can write to.
 """
 
 from __future__ import annotations
