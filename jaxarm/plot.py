@@ -20,10 +20,9 @@ from matplotlib import patches
 from matplotlib.animation import FuncAnimation, PillowWriter
 from matplotlib.figure import Figure
 
-from jaxarm import path
 from jaxarm._validate import positive_int
 from jaxarm.arm import joint_positions
-from jaxarm.problem import Problem, fitness
+from jaxarm.problem import Problem, fitness, joint_path
 from jaxarm.programs import jit
 
 OBSTACLE_STYLE = dict(facecolor="#c9c9c9", edgecolor="#555555", linewidth=1.0, zorder=1)
@@ -52,29 +51,14 @@ def _one_path(problem: Problem, x) -> np.ndarray:
     return x
 
 
-def _angles_and_positions(lengths, start, goal, x, basis):
-    """Joint angles, shape (n_r, n_joints), and joint positions, shape (n_r, n_joints + 1, 2),
-    along one path x (n_free,) at the rows of ``basis`` (``path.basis_values``, order 0)."""
-    theta = path.joint_angles(start, goal, x, basis)
-    return theta, joint_positions(lengths, theta)
-
-
-# One program per number of instants: run op by op, the figures of a solve compiled 74 tiny
-# programs in every new process (2.4 s of the 3.9 s they took).
-_compiled_angles_and_positions = jit(_angles_and_positions)
-
-
-def _drawn_path(problem: Problem, x, r) -> tuple[np.ndarray, np.ndarray]:
-    """``_angles_and_positions`` of the path x at normalised times r, as NumPy arrays."""
-    arrays = problem.arrays
-    basis = path.basis_values(problem.degree, np.asarray(r, np.float64)).astype(np.float32)
-    theta, positions = _compiled_angles_and_positions(arrays.lengths, arrays.start, arrays.goal,
-                                                      _one_path(problem, x), basis)
-    return np.asarray(theta), np.asarray(positions)
+# Compiled (op by op, the figures of a solve compiled 74 tiny programs in every new process,
+# 2.4 s of the 3.9 s they took): ``joint_path`` is compiled too.
+_compiled_positions = jit(joint_positions)
 
 
 def _positions(problem: Problem, x, r) -> np.ndarray:
-    return _drawn_path(problem, x, r)[1]  # (n_r, n_joints + 1, 2)
+    theta = joint_path(problem, _one_path(problem, x), r)
+    return np.asarray(_compiled_positions(problem.arrays.lengths, theta))  # (n_r, n_joints + 1, 2)
 
 
 def _show_workspace(ax, problem: Problem) -> None:
@@ -120,7 +104,7 @@ def plot_joint_angles(problem: Problem, x, ax=None, title: str | None = None):
     """theta_k(r) for every joint of the path ``x``."""
     figure, ax = _axes(ax, (5.5, 3.5))
     r = np.linspace(0.0, 1.0, 201)
-    theta = _drawn_path(problem, x, r)[0]
+    theta = np.asarray(joint_path(problem, _one_path(problem, x), r))
     for k in range(problem.n_joints):
         ax.plot(r, theta[:, k], label=f"θ{k + 1}")
     ax.set_xlabel("r = t / T")

@@ -52,7 +52,7 @@ def test_figures_explain_themselves(tmp_path, case2):
 
 
 def test_the_drawn_arm_is_the_path_the_api_computes(case2):
-    """The figures compute the path in one compiled program; the lines they draw are the
+    """The figures compute the path in compiled programs; the lines they draw are the
     joint angles and positions of ``jaxarm.joint_path`` and ``joint_positions``."""
     x = np.array([66.7388, -28.1028, -9.8855], np.float32)
     r = np.linspace(0.0, 1.0, 5)
