@@ -17,47 +17,53 @@ import jaxarm
 from jaxarm import polish, problem as problem_lib, traces
 from jaxarm.programs import jit
 
-RUN = """
-import json, jaxarm
-from jaxarm import traces
+# The CLI in a new process, counting the programs it traces for storing.
+CLI = """
+import sys
+from jaxarm import cli, traces
 exports = []
 export = traces._export
 traces._export = lambda *a: exports.append(1) or export(*a)
-jaxarm.enable_compilation_cache()
-problem = jaxarm.load_scenario("paper-case-2", collision="sampled")
-result = jaxarm.solve(problem, "A", n_particles=8, n_iters=12, n_restarts=3, seed=1)
-x = result.restarts.best_x
-polished = jaxarm.refine(problem, x, n_steps=5)
-print(json.dumps({"exports": len(exports), "x": x.tolist(),
-                  "fitness": result.restarts.best_fitness.tolist(),
-                  "refined": polished.x.tolist(),
-                  "clearance": jaxarm.certify(problem, x).clearance.tolist()}))
+code = cli.main(sys.argv[1:])
+print("exports", len(exports))
+sys.exit(code)
 """
+SOLVE = ["solve", "paper-case-2", "--collision", "sampled", "--particles", "8", "--iters", "12",
+         "--restarts", "3", "--seed", "1", "--refine", "all"]  # search, refine, certify
 
 
-def _run(folder, first_line: str = "") -> dict:
-    done = subprocess.run([sys.executable, "-c", first_line + RUN], capture_output=True, text=True,
-                          timeout=300, check=True,
+def _solve(folder, out, flags=(), first_line: str = "") -> tuple[int, dict]:
+    """A CLI solve in a new process with ``$JAXARM_CACHE_DIR`` set to ``folder``, writing JSON
+    to ``out``: (programs it traced for storing, the result without its time)."""
+    done = subprocess.run([sys.executable, "-c", first_line + CLI, *flags, *SOLVE, "--json",
+                           str(out)], capture_output=True, text=True, timeout=300, check=True,
                           env=dict(os.environ, JAXARM_CACHE_DIR=str(folder)))
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    exports = int(done.stdout.strip().splitlines()[-1].split()[1])
+    result = json.loads(out.read_text())["result"]
+    del result["seconds"]
+    return exports, result
 
 
-def test_a_new_process_runs_the_stored_programs_and_gets_the_bits_of_plain_jit(tmp_path):
-    """The compilation cache and the stored traces (tests/test_cache.py tests the switches)."""
+def test_the_cli_keeps_programs_a_new_process_runs_with_the_bits_of_plain_jit(tmp_path):
+    """The compilation cache and the stored traces, on by default in the CLI and off with
+    ``--no-cache`` (tests/test_cache.py tests where the cache lives)."""
     folder = tmp_path / "xla"
-    plain = _run("off")  # no cache: every program traced and compiled by jax.jit
-    first = _run(folder)
+    # --no-cache: every program traced and compiled by jax.jit, nothing kept
+    plain_exports, plain = _solve(tmp_path / "off", tmp_path / "plain.json", ["--no-cache"])
+    assert not (tmp_path / "off").exists()
+    first_exports, first = _solve(folder, tmp_path / "first.json")
     compiled = sorted(p.name for p in folder.iterdir())
     assert any(name.startswith("jit_search_restarts") for name in compiled), compiled
     stored = sorted(p.name for p in (folder / "traces").iterdir())
     # another entry point (more of jaxarm imported) finds the same programs
-    second = _run(folder, "import jaxarm.cli, jaxarm.reproduce, jaxarm.plot")
-    assert plain["exports"] == 0 and first["exports"] >= 3  # search, refine, certify at least
-    assert second["exports"] == 0  # nothing traced: every program came from the folder
+    second_exports, second = _solve(folder, tmp_path / "second.json",
+                                    first_line="import jaxarm.reproduce, jaxarm.plot")
+    assert plain_exports == 0 and first_exports >= 3  # search, refine, certify at least
+    assert second_exports == 0  # nothing traced: every program came from the folder
     assert sorted(p.name for p in (folder / "traces").iterdir()) == stored
     assert sorted(p.name for p in folder.iterdir()) == compiled  # nothing compiled anew
-    for key in ("x", "fitness", "refined", "clearance"):
-        assert first[key] == plain[key] == second[key], key
+    assert first["best_fitness"] > first["pso_best_fitness"]  # refine moved the best path
+    assert first == plain and second == plain
 
 
 def _evaluate_call(problem, x):
