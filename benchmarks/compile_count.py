@@ -1,8 +1,9 @@
-"""How many programs the quick report compiles: the search's, certify's and refine's jit caches.
+"""How many programs the quick report compiles: the search's, the checks' and refine's jit caches.
 
 Runs ``reproduce_paper(quick=True)`` in this process (into a scratch folder, no persistent
-cache) and prints the number of compiled ``search``, ``certify`` and ``refine`` programs and the
-wall time.
+cache) and prints the number of compiled ``search`` programs, of check programs (``fitness``,
+``violation`` and ``certify`` share them: one per problem spec and batch size) and of
+``refine`` programs, and the wall time.
 
     JAXARM_CACHE_DIR=off .venv/bin/python benchmarks/compile_count.py
 """
@@ -21,8 +22,8 @@ def main():
     began = time.perf_counter()
     with tempfile.TemporaryDirectory() as out:
         reproduce_paper(out, quick=True)
-    print(f"search programs {compiled_search._cache_size()}, certify programs "
-          f"{problem._certify._cache_size()}, refine programs "
+    print(f"search programs {compiled_search._cache_size()}, check programs "
+          f"{problem._evaluate_and_certify._cache_size()}, refine programs "
           f"{polish._compiled_refine._cache_size()}, {time.perf_counter() - began:.0f} s")
 
 

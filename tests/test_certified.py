@@ -7,7 +7,7 @@ import pytest
 import jaxarm
 from jaxarm import certified, published
 from jaxarm.oracle import dense_clearance
-from jaxarm.problem import SMALL_BATCH, _certify
+from jaxarm.problem import SMALL_BATCH, _evaluate_and_certify
 from jaxarm.programs import jit
 from jaxarm.published import a6_array
 
@@ -114,13 +114,19 @@ def test_small_certify_batches_share_one_program_and_agree_with_a_large_one(rng)
     x = rng.uniform(-60, 60, (200, problem.n_free)).astype(np.float32)
     large = jaxarm.certify(problem, x)
     jaxarm.certify(problem, x[:1])
-    programs = _certify._cache_size()
+    programs = _evaluate_and_certify._cache_size()
     for size in (1, 5, SMALL_BATCH):
         small = jaxarm.certify(problem, x[:size])
         for name, field in small._asdict().items():
             assert field.shape == (size,)
             np.testing.assert_array_equal(field, getattr(large, name)[:size], err_msg=name)
-    assert _certify._cache_size() == programs
+    # fitness, violation and certify share one program per spec and batch size, whatever the
+    # problem's collision mode
+    violation = np.asarray(jaxarm.violation(problem, x))
+    np.testing.assert_array_equal(violation == 0, large.free)
+    sampled = jaxarm.certify(problem.replace(collision="sampled"), x[:5])
+    np.testing.assert_array_equal(sampled.clearance, large.clearance[:5])
+    assert _evaluate_and_certify._cache_size() == programs
     assert jaxarm.certify(problem, x[:0]).free.shape == (0,)
 
 

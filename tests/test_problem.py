@@ -46,9 +46,9 @@ def test_fitness_is_inverse_distance_when_free_and_zero_when_colliding(case2, rn
     fitness = np.asarray(jaxarm.fitness(case2, x))
     distance = np.asarray(jaxarm.travelling_distance(case2, x))
     np.testing.assert_array_equal(distance, jaxarm.problem._evaluated(case2, x).distance)
-    programs = jaxarm.problem._evaluate._cache_size()
+    programs = jaxarm.problem._evaluate_and_certify._cache_size()
     jaxarm.travelling_distance(case2.replace(n_samples=41), x)  # runs no collision check
-    assert jaxarm.problem._evaluate._cache_size() == programs
+    assert jaxarm.problem._evaluate_and_certify._cache_size() == programs
     violation = np.asarray(jaxarm.violation(case2, x))
     free = violation == 0
     assert 0 < free.sum() < len(x)
@@ -68,20 +68,20 @@ def test_batched_equals_looped_for_any_leading_shape(case2, rng):
 
 
 def test_batches_are_padded_to_a_few_sizes_and_rows_do_not_depend_on_them(case2, rng):
-    from jaxarm.problem import LARGE_BLOCK, SMALL_BATCH, _evaluate, padded_size
+    from jaxarm.problem import LARGE_BLOCK, SMALL_BATCH, _evaluate_and_certify, padded_size
 
     assert [padded_size(n) for n in (0, 1, 64, 65, 4096, 4097)] == [64, 64, 64, 128, 4096, 8192]
     assert padded_size(3, smallest=16) == 16 and padded_size(3 * LARGE_BLOCK + 1) == 4 * 4096
     x = rng.uniform(-200, 200, (SMALL_BATCH + 6, 3)).astype(np.float32)
     large = [np.asarray(f(case2, x)) for f in (jaxarm.fitness, jaxarm.violation)]
     jaxarm.fitness(case2, x[:1])
-    programs = _evaluate._cache_size()
+    programs = _evaluate_and_certify._cache_size()
     for size in (1, 5, SMALL_BATCH):
         for f, whole in zip((jaxarm.fitness, jaxarm.violation), large):
             np.testing.assert_array_equal(np.asarray(f(case2, x[:size])), whole[:size])
     assert np.asarray(jaxarm.travelling_distance(case2, x[:2].reshape(2, 1, 3))).shape == (2, 1)
     assert jaxarm.fitness(case2, x[:0]).shape == (0,)  # run as 64 zero paths, cut away
-    assert _evaluate._cache_size() == programs
+    assert _evaluate_and_certify._cache_size() == programs
 
 
 @pytest.mark.parametrize("mode", ["sampled", "certified"])
@@ -114,9 +114,9 @@ def test_new_obstacle_data_does_not_recompile(case2):
     assert moved.spec == case2.spec
     x = jnp.zeros((4, 3))
     jaxarm.fitness(case2, x)
-    before = jaxarm.problem._evaluate._cache_size()
+    before = jaxarm.problem._evaluate_and_certify._cache_size()
     jaxarm.fitness(moved, x)
-    assert jaxarm.problem._evaluate._cache_size() == before
+    assert jaxarm.problem._evaluate_and_certify._cache_size() == before
 
 
 ARM = jaxarm.Arm((30.0, 30.0, 20.0))
@@ -228,7 +228,7 @@ def test_overflowing_paths_are_never_feasible(case2, mode):
                  np.float32)
     # compiled, padded with 60 zero paths: the 64-row program the public functions run
     rows = np.concatenate([x, np.zeros((60, 3), np.float32)])
-    evaluation = jaxarm.problem._evaluate(problem.spec, problem.arrays, rows)
+    evaluation, _ = jaxarm.problem._evaluate_and_certify(problem.spec, problem.arrays, rows)
     assert np.all(np.asarray(evaluation.fitness[:4]) == 0)
     assert not np.any(np.asarray(evaluation.violation[:4]) == 0)
 
