@@ -34,7 +34,8 @@ def test_the_predicted_start_escape_matches_the_measured_iteration_zero_rate():
 
 
 def test_open_space_is_all_free_and_bad_sizes_name_the_argument():
-    share = jaxarm.feasible_fraction(jaxarm.load_scenario("open-space"), n_samples=50)
+    # 100 paths: the program of feasible_fraction's docstring example
+    share = jaxarm.feasible_fraction(jaxarm.load_scenario("open-space"), n_samples=100)
     assert share.fraction == 1.0 and share.start_escape(20)[0] == 1.0
     with pytest.raises(ValueError, match="n_samples must be"):
         jaxarm.feasible_fraction(jaxarm.load_scenario("open-space"), n_samples=0)

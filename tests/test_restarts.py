@@ -164,11 +164,15 @@ def test_two_processes_return_what_one_process_returns(case2, tmp_path):
          "--collision", "sampled", "--particles", "8", "--iters", "12", "--restarts", "7",
          "--seed", "4", "--constraint", "feasibility", "--json", str(out)],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for i in (0, 1)]
-    outputs = [p.communicate(timeout=300) for p in processes]
+    try:  # the one-process run while the two processes run
+        one = jaxarm.solve(case2, "A", n_restarts=7, seed=4, constraint="feasibility", **SMALL)
+        outputs = [p.communicate(timeout=300) for p in processes]
+    finally:
+        for p in processes:
+            p.kill()  # none left behind by a failure (a finished process is left alone)
     assert [p.returncode for p in processes] == [0, 0], [err[-2000:] for _, err in outputs]
     assert f"wrote {out}" in outputs[0][0] and "fitness" in outputs[0][0]
     assert "wrote" not in outputs[1][0] and "fitness" not in outputs[1][0]  # 1 stays quiet
     two = jaxarm.Result.from_dict(json.loads(out.read_text())["result"])
-    one = jaxarm.solve(case2, "A", n_restarts=7, seed=4, constraint="feasibility", **SMALL)
     for name in one.restarts._fields:
         np.testing.assert_array_equal(getattr(two.restarts, name), getattr(one.restarts, name))

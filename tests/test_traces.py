@@ -1,6 +1,7 @@
 """Traced programs kept on disk (``jaxarm.traces``): reused by a new process, same bits, keyed
 on everything the trace depends on, and plain ``jax.jit`` whenever a call cannot be keyed."""
 
+import concurrent.futures
 import json
 import os
 import subprocess
@@ -48,10 +49,13 @@ def test_the_cli_keeps_programs_a_new_process_runs_with_the_bits_of_plain_jit(tm
     """The compilation cache and the stored traces, on by default in the CLI and off with
     ``--no-cache`` (tests/test_cache.py tests where the cache lives)."""
     folder = tmp_path / "xla"
-    # --no-cache: every program traced and compiled by jax.jit, nothing kept
-    plain_exports, plain = _solve(tmp_path / "off", tmp_path / "plain.json", ["--no-cache"])
+    with concurrent.futures.ThreadPoolExecutor(2) as pool:  # two independent processes
+        # --no-cache: every program traced and compiled by jax.jit, nothing kept
+        plain_run = pool.submit(_solve, tmp_path / "off", tmp_path / "plain.json",
+                                ["--no-cache"])
+        first_run = pool.submit(_solve, folder, tmp_path / "first.json")
+        (plain_exports, plain), (first_exports, first) = plain_run.result(), first_run.result()
     assert not (tmp_path / "off").exists()
-    first_exports, first = _solve(folder, tmp_path / "first.json")
     compiled = sorted(p.name for p in folder.iterdir())
     assert any(name.startswith("jit_search_restarts") for name in compiled), compiled
     stored = sorted(p.name for p in (folder / "traces").iterdir())
