@@ -18,16 +18,19 @@ import jaxarm
 from jaxarm import polish, problem as problem_lib, traces
 from jaxarm.programs import jit
 
-# The CLI in a new process, counting the programs it traces for storing.
+# The CLI in a new process, counting the programs it traces for storing; then the clearances
+# of its restarts' paths (certify's floats: the JSON has only the best path's verdict).
 CLI = """
-import sys
+import json, sys
+import jaxarm
 from jaxarm import cli, traces
 exports = []
 export = traces._export
 traces._export = lambda *a: exports.append(1) or export(*a)
-code = cli.main(sys.argv[1:])
-print("exports", len(exports))
-sys.exit(code)
+assert cli.main(sys.argv[1:]) == 0
+x = json.loads(open(sys.argv[-1]).read())["result"]["restarts"]["best_x"]
+clearance = jaxarm.certify(jaxarm.load_scenario("paper-case-2"), x).clearance.tolist()
+print(json.dumps({"exports": len(exports), "clearance": clearance}))
 """
 SOLVE = ["solve", "paper-case-2", "--collision", "sampled", "--particles", "8", "--iters", "12",
          "--restarts", "3", "--seed", "1", "--refine", "all"]  # search, refine, certify
@@ -35,14 +38,15 @@ SOLVE = ["solve", "paper-case-2", "--collision", "sampled", "--particles", "8", 
 
 def _solve(folder, out, flags=(), first_line: str = "") -> tuple[int, dict]:
     """A CLI solve in a new process with ``$JAXARM_CACHE_DIR`` set to ``folder``, writing JSON
-    to ``out``: (programs it traced for storing, the result without its time)."""
+    to ``out``: (programs it traced for storing, the result without its time and with the
+    clearances of its restarts' paths)."""
     done = subprocess.run([sys.executable, "-c", first_line + CLI, *flags, *SOLVE, "--json",
                            str(out)], capture_output=True, text=True, timeout=300, check=True,
                           env=dict(os.environ, JAXARM_CACHE_DIR=str(folder)))
-    exports = int(done.stdout.strip().splitlines()[-1].split()[1])
+    printed = json.loads(done.stdout.strip().splitlines()[-1])
     result = json.loads(out.read_text())["result"]
     del result["seconds"]
-    return exports, result
+    return printed["exports"], dict(result, clearance=printed["clearance"])
 
 
 def test_the_cli_keeps_programs_a_new_process_runs_with_the_bits_of_plain_jit(tmp_path):
