@@ -137,7 +137,7 @@ def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch):
     arrays = problem.arrays
     x = rng.uniform(-10, 10, (200, problem.n_free)).astype(np.float32)
     # One chunk and one narrow loop: 200 paths (padded to 256) < WINDOW_CHUNK, fewer than
-    # FEW_PATHS to bisect; the programs of the dense check and of the test above.
+    # FEW_PATHS to bisect; the one program of the dense check and of the test above.
     one_chunk_narrow = jaxarm.certify(problem, x)._asdict()
     one_chunk_narrow["violation"] = jaxarm.violation(problem, x)
     monkeypatch.setattr(certified, "WINDOW_CHUNK", 16)
