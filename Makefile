@@ -10,22 +10,31 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 OLDEST := .venv-oldest
-# pip installs uv into the venv, and uv installs the rest, compiled to bytecode as pip does:
-# 18-19 s against pip's 41-44 s for the test install on 2 cores (benchmarks/RESULTS.md, "uv
-# installs the suite's dependencies"). pip installs them where uv cannot (no uv wheel for the
-# platform, or an index that only pip is configured to reach).
-install = $(1)/bin/uv pip install --quiet --compile-bytecode --python $(1)/bin/python $(2) \
-	|| $(1)/bin/python -m pip install --quiet $(2)
+# uv installs the dependencies (and pip, for the user), compiled to bytecode as pip does: 18-19 s
+# against pip's 41-44 s for the test install on 2 cores (benchmarks/RESULTS.md, "uv installs
+# the suite's dependencies"). pip installs them where uv cannot (no uv wheel for the platform,
+# or an index that only pip is configured to reach).
+install = $(1)/bin/uv pip install --quiet --compile-bytecode --python $(1)/bin/python pip $(2) \
+	|| ($(call pip_into,$(1)) && $(1)/bin/python -m pip install --quiet $(2))
+# The venvs are made without pip (0.15 s against 5.2 s for `venv` installing its own) and the
+# interpreter's pip installs uv into them (pip >= 22.3: `--python`); the whole test install
+# took 13-17 s against 17-20 s (three pairs, benchmarks/RESULTS.md, "A venv without pip").
+# Where that fails, the venv gets its bundled pip (`ensurepip`), which installs uv, or all.
+pip_into = $(1)/bin/python -m pip --version >/dev/null 2>&1 \
+	|| $(1)/bin/python -m ensurepip --default-pip >/dev/null
+uv_into = $(PYTHON) -m pip --python $(1)/bin/python install --quiet uv 2>/dev/null \
+	|| ($(call pip_into,$(1)) && $(1)/bin/python -m pip install --quiet uv) \
+	|| echo "uv not installed: pip installs the rest"
 TEST_EXTRAS := .[test]
 NOTEBOOK_EXTRAS := .[test,notebooks]
 
 .PHONY: demo test test-all test-slow test-oldest notebooks docs clean
 
 $(BIN)/activate:
-	$(PYTHON) -m venv $(VENV)
+	$(PYTHON) -m venv --without-pip $(VENV)
 
 $(BIN)/uv: | $(BIN)/activate
-	$(BIN)/python -m pip install --quiet uv || echo "uv not installed: pip installs the rest"
+	$(call uv_into,$(VENV))
 
 $(VENV)/.installed-test: pyproject.toml | $(BIN)/uv
 	$(call install,$(VENV),-e '$(TEST_EXTRAS)')
@@ -52,8 +61,8 @@ test-slow: $(VENV)/.installed-notebooks
 # .venv-oldest (tests/oldest-versions.txt).
 test-oldest:
 	rm -rf $(OLDEST)
-	$(PYTHON) -m venv $(OLDEST)
-	$(OLDEST)/bin/python -m pip install --quiet uv || echo "uv not installed: pip installs the rest"
+	$(PYTHON) -m venv --without-pip $(OLDEST)
+	$(call uv_into,$(OLDEST))
 	$(call install,$(OLDEST),-c tests/oldest-versions.txt -e '$(TEST_EXTRAS)')
 	$(OLDEST)/bin/python -m pytest -q -n 2 --dist loadfile -m "not slow"
 
