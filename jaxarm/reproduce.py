@@ -82,6 +82,7 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
         programs must start in the same order everywhere). Results do not depend on it; times
         do. One section compiles while another runs: on 2 cores the quick report took 83-120 s
         with 2 threads against 110-149 s one after another (``benchmarks/RESULTS.md``).
+        Interrupted (Ctrl-C), the threads finish the sections they are in and start no other.
 
     Returns:
       The path of the report.
@@ -201,9 +202,10 @@ def _run_sections(sections: list, out: pathlib.Path, workers: int,
     """Each section filled into a ``_Report`` of its own; the reports in the sections' order.
 
     With ``workers`` > 1 the sections run on that many threads, the long ones first, and each
-    logs when it starts and ends; the first error is raised once the main thread sees it (the
-    other threads finish the section they are in: they are daemons, so an exiting process
-    does not wait for them). Sections must not depend on one another.
+    logs when it starts and ends; the first error is raised once the main thread sees it, and
+    Ctrl-C (``KeyboardInterrupt`` in the main thread) at once. Then no section starts: the
+    threads finish the section they are in (they are daemons, so an exiting process does not
+    wait for them). Sections must not depend on one another.
     """
     parts = [_Report(out) for _ in sections]
     log = _one_line_at_a_time(log)
@@ -237,11 +239,16 @@ def _run_sections(sections: list, out: pathlib.Path, workers: int,
 
     threads = [threading.Thread(target=worker, name=f"{SECTION_THREADS}-{n}", daemon=True)
                for n in range(min(workers, len(sections)))]
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        while thread.is_alive() and not errors:
-            thread.join(0.1)  # in short waits, so that Ctrl-C reaches the main thread
+    try:
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            while thread.is_alive() and not errors:
+                thread.join(0.1)  # in short waits, so that Ctrl-C reaches the main thread
+    except BaseException:  # Ctrl-C: before, a notebook's threads went on with the rest
+        with lock:
+            waiting.clear()
+        raise
     if errors:
         raise errors[0]
     return parts

@@ -1,5 +1,6 @@
 """``reproduce-paper`` (``jaxarm.reproduce``): every table of the report."""
 
+import _thread
 import re
 import subprocess
 import sys
@@ -94,6 +95,30 @@ def test_a_failing_section_raises_without_waiting_for_the_others(tmp_path):
             reproduce._run_sections(sections, tmp_path, 2, lambda text: None, 0.0)
     finally:
         release.set()
+
+
+def test_ctrl_c_while_sections_run_starts_no_other_section(tmp_path):
+    """``KeyboardInterrupt`` in the main thread (Ctrl-C in a notebook): the threads finish the
+    sections they are in and start no other (they used to run the rest in the background)."""
+    release, ran = threading.Event(), []
+
+    def interrupting(part):
+        _thread.interrupt_main()  # raised in the main thread, inside _run_sections' wait
+        assert release.wait(10)
+
+    sections = [reproduce._Section("interrupting", interrupting, long=True),
+                _section("slow", "x", long=True, wait=release),
+                *(reproduce._Section(name, lambda part, name=name: ran.append(name))
+                  for name in ("c", "d"))]
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            reproduce._run_sections(sections, tmp_path, 2, lambda text: None, 0.0)
+    finally:
+        release.set()
+    deadline = time.monotonic() + 10
+    while reproduce.sections_running() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert not reproduce.sections_running() and ran == []
 
 
 def test_workers_default_to_the_cores_and_must_be_1_across_processes(monkeypatch):
