@@ -189,12 +189,14 @@ def _workers_sentence(workers: int) -> str:
 
 
 SECTION_THREADS = "jaxarm-report-section"
+# Section threads that have not returned. Not ``Thread.is_alive``: it says False for a running
+# thread once Ctrl-C has interrupted a ``join`` on it (CPython before 3.13; tested).
+_unfinished_threads: set[threading.Thread] = set()
 
 
 def sections_running() -> bool:
     """Whether a section thread of an unfinished report still runs (``_run_sections``)."""
-    return any(thread.name.startswith(SECTION_THREADS) and thread.is_alive()
-               for thread in threading.enumerate())
+    return bool(_unfinished_threads)
 
 
 def _run_sections(sections: list, out: pathlib.Path, workers: int,
@@ -225,22 +227,26 @@ def _run_sections(sections: list, out: pathlib.Path, workers: int,
     errors, lock = [], threading.Lock()
 
     def worker() -> None:
-        while True:
-            with lock:
-                if errors or not waiting:
-                    return
-                index = waiting.popleft()
-            try:
-                run(index)
-            except BaseException as error:  # noqa: BLE001 - raised again in the main thread
+        try:
+            while True:
                 with lock:
-                    errors.append(error)
-                return
+                    if errors or not waiting:
+                        return
+                    index = waiting.popleft()
+                try:
+                    run(index)
+                except BaseException as error:  # noqa: BLE001 - raised in the main thread
+                    with lock:
+                        errors.append(error)
+                    return
+        finally:
+            _unfinished_threads.discard(threading.current_thread())
 
     threads = [threading.Thread(target=worker, name=f"{SECTION_THREADS}-{n}", daemon=True)
                for n in range(min(workers, len(sections)))]
     try:
         for thread in threads:
+            _unfinished_threads.add(thread)  # until the thread returns
             thread.start()
         for thread in threads:
             while thread.is_alive() and not errors:
@@ -248,6 +254,7 @@ def _run_sections(sections: list, out: pathlib.Path, workers: int,
     except BaseException:  # Ctrl-C: before, a notebook's threads went on with the rest
         with lock:
             waiting.clear()
+        _unfinished_threads.difference_update(t for t in threads if t.ident is None)  # unstarted
         raise
     if errors:
         raise errors[0]

@@ -121,6 +121,31 @@ def test_ctrl_c_while_sections_run_starts_no_other_section(tmp_path):
     assert not reproduce.sections_running() and ran == []
 
 
+def test_a_section_still_running_after_ctrl_c_is_seen_running(tmp_path):
+    """``Thread.is_alive`` says False for a running thread whose ``join`` Ctrl-C interrupted
+    (CPython before 3.13); ``sections_running`` must not, or the CLI's exit tears the XLA
+    runtime down under the section (``cli._leave``)."""
+    release = threading.Event()
+
+    def interrupting(part):
+        time.sleep(0.3)  # the main thread is waiting in Thread.join by then
+        _thread.interrupt_main()
+        assert release.wait(10)
+
+    sections = [reproduce._Section("interrupting", interrupting, long=True),
+                _section("quick", "x")]
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            reproduce._run_sections(sections, tmp_path, 2, lambda text: None, 0.0)
+        assert reproduce.sections_running()
+    finally:
+        release.set()
+    deadline = time.monotonic() + 10
+    while reproduce.sections_running() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert not reproduce.sections_running()
+
+
 def test_workers_default_to_the_cores_and_must_be_1_across_processes(monkeypatch):
     assert 1 <= reproduce._section_workers(None) <= 5
     assert reproduce._section_workers(3) == 3
@@ -137,12 +162,14 @@ import sys, threading, time
 import jax, jax.numpy as jnp
 from jaxarm import cli, reproduce
 
-def section():  # a section thread still inside an XLA program
+def inside_xla(part):  # a section still inside an XLA program
     x = jnp.ones((300, 300))
     steps = jax.jit(lambda x: jax.lax.fori_loop(0, 10**6, lambda i, a: jnp.tanh(a @ x), x))
     steps(x).block_until_ready()
 
-threading.Thread(target=section, name=reproduce.SECTION_THREADS + "-0", daemon=True).start()
+sections = [reproduce._Section(name, inside_xla) for name in "ab"]
+threading.Thread(target=reproduce._run_sections, args=(sections, None, 2, print, 0.0),
+                 daemon=True).start()
 time.sleep(1.0)
 sys.exit(cli._leave(130))
 """
