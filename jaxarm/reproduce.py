@@ -190,7 +190,7 @@ def _workers_sentence(workers: int) -> str:
 
 SECTION_THREADS = "jaxarm-report-section"
 # Section threads that have not returned. Not ``Thread.is_alive``: it says False for a running
-# thread once Ctrl-C has interrupted a ``join`` on it (CPython before 3.13; tested).
+# thread once Ctrl-C has interrupted a ``join`` on it (tested on CPython 3.11).
 _unfinished_threads: set[threading.Thread] = set()
 
 

@@ -123,7 +123,7 @@ def test_ctrl_c_while_sections_run_starts_no_other_section(tmp_path):
 
 def test_a_section_still_running_after_ctrl_c_is_seen_running(tmp_path):
     """``Thread.is_alive`` says False for a running thread whose ``join`` Ctrl-C interrupted
-    (CPython before 3.13); ``sections_running`` must not, or the CLI's exit tears the XLA
+    (CPython 3.11); ``sections_running`` must not, or the CLI's exit tears the XLA
     runtime down under the section (``cli._leave``)."""
     release = threading.Event()
 
