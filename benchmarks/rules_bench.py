@@ -8,7 +8,7 @@ predicts for 20 particles beside the one measured (the initial swarms of ``--sta
 seeds, with the Wilson interval of that share).
 
     .venv/bin/python benchmarks/rules_bench.py [--seeds 300] [--modes sampled,certified]
-        [--parts rules,share] [--draws 100000] [--start-seeds 3000]
+        [--parts rules,share] [--draws 100000] [--start-seeds 3000] [--scenarios a,b]
 """
 
 from __future__ import annotations
@@ -51,34 +51,38 @@ def main():
                         help="uniform paths per feasible share")
     parser.add_argument("--start-seeds", type=int, default=3000,
                         help="initial swarms per measured iteration-0 escape")
+    parser.add_argument("--scenarios", default=None,
+                        help="comma-separated scenario names (default: paper-case-1 and "
+                             "death-trap for rules, every shipped one for share)")
     args = parser.parse_args()
     modes, parts = args.modes.split(","), args.parts.split(",")
     print(f"jax {jax.__version__} ({jax.default_backend()}), preset A, 20 particles\n")
+    chosen = args.scenarios.split(",") if args.scenarios else None
     if "rules" in parts:
-        rules_part(modes, args.seeds)
+        rules_part(modes, args.seeds, chosen or ["paper-case-1", "death-trap"])
     if "share" in parts:
-        share_part(modes, args.draws, args.start_seeds)
+        share_part(modes, args.draws, args.start_seeds, chosen or jaxarm.available_scenarios())
 
 
-def rules_part(modes: list[str], n_seeds: int) -> None:
+def rules_part(modes: list[str], n_seeds: int, names: list[str]) -> None:
     print(f"{n_seeds} seeds, 100 iterations\n")
     print("| scenario | check | rule | escape rate [95 % CI] | ends feasible | "
           "median / best fitness (feasible) | vs death penalty | time (s) |")
     print("|---|---|---|---|---|---|---|---|")
     for mode in modes:
-        for name in ("paper-case-1", "death-trap"):
+        for name in names:
             for line in rules_table(jaxarm.load_scenario(name, collision=mode), n_seeds):
                 print(line, flush=True)
 
 
-def share_part(modes: list[str], n_draws: int, n_seeds: int) -> None:
+def share_part(modes: list[str], n_draws: int, n_seeds: int, names: list[str]) -> None:
     print(f"\nfeasible share from {n_draws} uniform paths; iteration-0 escape of {n_seeds} "
           "initial swarms\n")
     print("| scenario | check | free share [95 % CI] | start escape: predicted [95 % CI] | "
           "measured [95 % CI] | intervals overlap |")
     print("|---|---|---|---|---|---|")
     for mode in modes:
-        for name in jaxarm.available_scenarios():
+        for name in names:
             problem = jaxarm.load_scenario(name, collision=mode)
             share = jaxarm.feasible_fraction(problem, n_samples=n_draws)
             start = jaxarm.escape_study(problem, ["A"], n_seeds=n_seeds, n_iters=1,

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import jaxarm
+from jaxarm.oracle import dense_clearance
 
 ARM = jaxarm.Arm((30.0, 30.0, 20.0))
 
@@ -14,6 +15,17 @@ def test_paper_case_1_postures_come_from_its_poses():
                                atol=1e-12)
     np.testing.assert_allclose(jaxarm.inverse_kinematics(ARM, 50, 40, 0.886701, 1), problem.goal,
                                atol=1e-12)
+
+
+def test_death_trap_leaves_room_beside_its_block():
+    """Its block begins 1 cm beyond the first link's reach (30 cm). With the block at x = 30
+    the link's tip touched the corner (30, 0) whenever the link passed horizontal, as every
+    degree-6 motion free at the samples does, so none could be certified free."""
+    trap = jaxarm.load_scenario("death-trap")
+    x = [[-104.0, -144.0, 480.0]]  # from a grid of a6 (benchmarks/RESULTS.md)
+    np.testing.assert_allclose(dense_clearance(trap, x, 20001), 1.0, atol=1e-6)  # tip to corner
+    touching = trap.replace(world=jaxarm.World(boxes=[((30.0, 0.0), (70.0, 30.0))]))
+    assert 0.0 <= dense_clearance(touching, x, 20001)[0] < 1e-6
 
 
 def test_shipped_scenarios_load():
