@@ -24,7 +24,8 @@ one compiled program serves every rule.
   two terms start balanced; 1 when no particle collides); after every update lambda doubles
   while the global best collides (up to 1e6 lambda(0)) and stays while it is free. (Halving it
   while free, as Hadj-Alouane and Bean do, let colliding paths win back the global best: on
-  death-trap half the restarts that escaped ended colliding, by hand over 300 seeds.)
+  death-trap, its block then at x = 30, half the restarts that escaped ended colliding, by hand
+  over 300 seeds.)
 
 What the rules compare as a path's violation (``path_measures``): its violation
 (``jaxarm.violation``, the deepest penetration found, cm) times its travelling distance (the

@@ -29,9 +29,9 @@ Topology: ``"global"`` (the paper's gbest: every particle follows the swarm's be
 best), ``"ring"`` (lbest: particle i follows the best personal best among particles i - 1, i
 and i + 1, indices modulo n) or ``"global-ring"``: the global best for the first
 ``GLOBAL_RING_SHARE`` (5 %) of the iterations, the ring after (chosen by hand on 300 seeds of
-case 1 and death-trap for epsilon, when the constraint rules compared the depth of a collision
-alone; ``benchmarks/RESULTS.md`` has what it does since). The reported global best is the
-swarm's best personal best either way.
+case 1 and death-trap, its block then at x = 30, for epsilon, when the rules compared the depth
+of a collision alone; ``benchmarks/RESULTS.md`` has what it does since). The reported global
+best is the swarm's best personal best either way.
 
 Scores come from a constraint-handling rule (``jaxarm.constraints``) applied to what the
 measure function reports; every personal best is scored again at every update, so rules that
