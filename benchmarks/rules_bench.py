@@ -7,8 +7,12 @@ Then every shipped scenario's feasible share of the init range, with the iterati
 predicts for 20 particles beside the one measured (the initial swarms of ``--start-seeds``
 seeds, with the Wilson interval of that share).
 
+The rules are ``reproduce-paper``'s, and one more: preset A on the ring with its inertia
+falling from 1 to 0.4 instead of 0 (``SLOW_RING``), under feasibility rules.
+
     .venv/bin/python benchmarks/rules_bench.py [--seeds 300] [--modes sampled,certified]
         [--parts rules,share] [--draws 100000] [--start-seeds 3000] [--scenarios a,b]
+        [--methods A,A-ring:feasibility] [--seed 0]
 """
 
 from __future__ import annotations
@@ -21,10 +25,23 @@ import numpy as np
 import jaxarm
 from jaxarm.reproduce import rule_methods
 from jaxarm.stats import wilson_interval
+from jaxarm.study import Variant
+
+# Chosen by hand on death-trap's 300 seeds of base seed 0 (certified check) among inertia
+# ending at 0, 0.67 and 0.4 from 1, and 0.9 -> 0.4 (benchmarks/RESULTS.md, *Constraint rules
+# and topologies*).
+SLOW_RING = Variant("A-ring (inertia 1 to 0.4):feasibility",
+                    jaxarm.PRESETS["A"]._replace(topology="ring", inertia_end=0.4), "feasibility")
 
 
-def rules_table(problem, n_seeds: int) -> list[str]:
-    result = jaxarm.escape_study(problem, rule_methods()[0], n_seeds=n_seeds, progress=False)
+def rules_table(problem, n_seeds: int, labels: list[str] | None, seed: int) -> list[str]:
+    methods = rule_methods()[0] + [SLOW_RING]
+    if labels is not None:  # the death penalty always: the last column compares with it
+        unknown = set(labels) - {getattr(m, "label", m) for m in methods}
+        if unknown:
+            raise SystemExit(f"--methods: unknown {sorted(unknown)}")
+        methods = [m for m in methods if getattr(m, "label", m) in set(labels) | {"A"}]
+    result = jaxarm.escape_study(problem, methods, n_seeds=n_seeds, seed=seed, progress=False)
     lines = []
     for method in result.methods:
         s, outcome = method.summary(), method.outcome
@@ -51,6 +68,9 @@ def main():
                         help="uniform paths per feasible share")
     parser.add_argument("--start-seeds", type=int, default=3000,
                         help="initial swarms per measured iteration-0 escape")
+    parser.add_argument("--methods", default=None,
+                        help="comma-separated labels of the rules table's rows (default: all)")
+    parser.add_argument("--seed", type=int, default=0, help="the studies' base seed (0)")
     parser.add_argument("--scenarios", default=None,
                         help="comma-separated scenario names (default: paper-case-1 and "
                              "death-trap for rules, every shipped one for share)")
@@ -59,19 +79,22 @@ def main():
     print(f"jax {jax.__version__} ({jax.default_backend()}), preset A, 20 particles\n")
     chosen = args.scenarios.split(",") if args.scenarios else None
     if "rules" in parts:
-        rules_part(modes, args.seeds, chosen or ["paper-case-1", "death-trap"])
+        labels = args.methods.split(",") if args.methods else None
+        rules_part(modes, args.seeds, chosen or ["paper-case-1", "death-trap"], labels, args.seed)
     if "share" in parts:
         share_part(modes, args.draws, args.start_seeds, chosen or jaxarm.available_scenarios())
 
 
-def rules_part(modes: list[str], n_seeds: int, names: list[str]) -> None:
-    print(f"{n_seeds} seeds, 100 iterations\n")
+def rules_part(modes: list[str], n_seeds: int, names: list[str], labels: list[str] | None,
+               seed: int) -> None:
+    print(f"{n_seeds} seeds from seed {seed}, 100 iterations\n")
     print("| scenario | check | rule | escape rate [95 % CI] | ends feasible | "
           "median / best fitness (feasible) | vs death penalty | time (s) |")
     print("|---|---|---|---|---|---|---|---|")
     for mode in modes:
         for name in names:
-            for line in rules_table(jaxarm.load_scenario(name, collision=mode), n_seeds):
+            problem = jaxarm.load_scenario(name, collision=mode)
+            for line in rules_table(problem, n_seeds, labels, seed):
                 print(line, flush=True)
 
 

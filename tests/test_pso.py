@@ -37,6 +37,9 @@ def test_presets_are_the_papers_table_2():
     assert (c.velocity_rule, c.cognitive_coeff, c.social_coeff) == ("constriction", 3.0, 2.0)
     assert round(c.constriction, 4) == 0.3820
     assert a.constriction == b.constriction == 1.0
+    # the README's slower ring: PSOConfig's defaults are preset A's
+    assert (pso.PSOConfig(topology="ring", inertia_end=0.4)
+            == a._replace(topology="ring", inertia_end=0.4))
 
 
 @pytest.mark.parametrize(
