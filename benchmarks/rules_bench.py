@@ -8,11 +8,11 @@ predicts for 20 particles beside the one measured (the initial swarms of ``--sta
 seeds, with the Wilson interval of that share).
 
 The rules are ``reproduce-paper``'s, and one more: preset A on the ring with its inertia
-falling from 1 to 0.4 instead of 0 (``SLOW_RING``), under feasibility rules.
+falling from 1 to 0.4 instead of 0, under feasibility rules (``SLOW_RING``).
 
     .venv/bin/python benchmarks/rules_bench.py [--seeds 300] [--modes sampled,certified]
         [--parts rules,share] [--draws 100000] [--start-seeds 3000] [--scenarios a,b]
-        [--methods A,A-ring:feasibility] [--seed 0]
+        [--methods "A-ring:feasibility,A-ring[inertia_end=0.4]:feasibility"] [--seed 0]
 """
 
 from __future__ import annotations
@@ -23,24 +23,23 @@ import jax
 import numpy as np
 
 import jaxarm
+from jaxarm.choices import split_methods
 from jaxarm.reproduce import rule_methods
 from jaxarm.stats import wilson_interval
-from jaxarm.study import Variant
 
 # Chosen by hand on death-trap's 300 seeds of base seed 0 (certified check) among inertia
 # ending at 0, 0.67 and 0.4 from 1, and 0.9 -> 0.4 (benchmarks/RESULTS.md, *Constraint rules
 # and topologies*).
-SLOW_RING = Variant("A-ring (inertia 1 to 0.4):feasibility",
-                    jaxarm.PRESETS["A"]._replace(topology="ring", inertia_end=0.4), "feasibility")
+SLOW_RING = "A-ring[inertia_end=0.4]:feasibility"
 
 
 def rules_table(problem, n_seeds: int, labels: list[str] | None, seed: int) -> list[str]:
     methods = rule_methods()[0] + [SLOW_RING]
     if labels is not None:  # the death penalty always: the last column compares with it
-        unknown = set(labels) - {getattr(m, "label", m) for m in methods}
+        unknown = set(labels) - set(methods)
         if unknown:
             raise SystemExit(f"--methods: unknown {sorted(unknown)}")
-        methods = [m for m in methods if getattr(m, "label", m) in set(labels) | {"A"}]
+        methods = [m for m in methods if m in set(labels) | {"A"}]
     result = jaxarm.escape_study(problem, methods, n_seeds=n_seeds, seed=seed, progress=False)
     lines = []
     for method in result.methods:
@@ -79,7 +78,7 @@ def main():
     print(f"jax {jax.__version__} ({jax.default_backend()}), preset A, 20 particles\n")
     chosen = args.scenarios.split(",") if args.scenarios else None
     if "rules" in parts:
-        labels = args.methods.split(",") if args.methods else None
+        labels = split_methods(args.methods) if args.methods else None
         rules_part(modes, args.seeds, chosen or ["paper-case-1", "death-trap"], labels, args.seed)
     if "share" in parts:
         share_part(modes, args.draws, args.start_seeds, chosen or jaxarm.available_scenarios())

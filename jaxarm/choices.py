@@ -4,6 +4,8 @@
 these tuples; ``jaxarm.cli`` builds its ``choices=`` from them.
 """
 
+import re
+
 VELOCITY_RULES = ("original", "inertia", "constriction")
 TIE_BREAKS = ("first", "random")
 BETA_MODES = ("dimension", "particle")
@@ -18,6 +20,12 @@ PRESET_NAMES = ("A", "B", "C")  # the paper's Table 2
 TOPOLOGY_SUFFIXES = {"-ring": "ring", "-global-ring": "global-ring"}
 PSO_METHODS = PRESET_NAMES + tuple(name + suffix for suffix in TOPOLOGY_SUFFIXES
                                    for name in PRESET_NAMES)
+
+
+def split_methods(text: str) -> list[str]:
+    """``"A,A-ring[inertia_end=0.4,social_coeff=2]:feasibility"`` as its methods, stripped: a
+    comma inside brackets belongs to its method (``pso.resolve``)."""
+    return [method.strip() for method in re.split(r",(?![^\[]*\])", text)]
 
 
 def one_of(field: str, value, options: tuple) -> str:

@@ -15,7 +15,8 @@ import pathlib
 import sys
 import tempfile
 
-from jaxarm.choices import COLLISION_MODES, CONSTRAINTS, LIMIT_UNITS, PSO_METHODS
+from jaxarm.choices import (COLLISION_MODES, CONSTRAINTS, LIMIT_UNITS, PSO_METHODS,
+                            split_methods)
 
 EXIT_ERROR = 2
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
@@ -123,9 +124,11 @@ def build_parser() -> argparse.ArgumentParser:
     solve = commands.add_parser("solve", help="search one scenario and print the best path",
                                 description="Run PSO restarts on a scenario; print a summary.")
     _add_search_options(solve)
-    solve.add_argument("--method", default="A", choices=PSO_METHODS,
-                       help="the paper's preset, or one with the ring (A-ring) or "
-                            "global-then-ring (A-global-ring) topology (A)")
+    solve.add_argument("--method", default="A", metavar="METHOD",
+                       help=f"the paper's preset, or one with the ring (A-ring) or "
+                            f"global-then-ring (A-global-ring) topology: one of "
+                            f"{', '.join(PSO_METHODS)}, optionally with PSOConfig fields "
+                            f"changed in brackets, such as 'A-ring[inertia_end=0.4]' (A)")
     solve.add_argument("--restarts", type=_positive, default=1, help="independent swarms (1)")
     solve.add_argument("--refine", choices=("best", "all"),
                        help="polish with gradient steps after PSO: the best restart, or every "
@@ -159,8 +162,10 @@ def build_parser() -> argparse.ArgumentParser:
     study.add_argument("--methods", default="A,B,C",
                        help="comma-separated: A, B, C, A-ring (preset A, ring topology), "
                             "A-global-ring (the global best for 5 %% of the iterations, then the "
-                            "ring), METHOD:CONSTRAINT, or an evosax strategy such as "
-                            "evosax:CMA_ES or evosax:DE:feasibility (needs evosax) (A,B,C)")
+                            "ring), any of them with PSOConfig fields changed in brackets "
+                            "('A-ring[inertia_end=0.4]'), METHOD:CONSTRAINT, or an evosax "
+                            "strategy such as evosax:CMA_ES or evosax:DE:feasibility (needs "
+                            "evosax) (A,B,C)")
     study.add_argument("--chunk-size", type=_positive, default=500,
                        help="at most this many restarts per compiled call; bounds memory and "
                             "sets how often the progress bar moves, results do not depend on "
@@ -327,6 +332,9 @@ def _report_trajectory(args, problem, result, limits: dict) -> None:
 def _solve(args) -> None:
     _check_outputs(args)
     _check_settings(args)
+    from jaxarm import pso
+
+    pso.resolve(args.method)  # a PSO method, checked before the scenario is loaded
     problem = _load(args)
     limits = _timing_limits(args, problem)
     from jaxarm import plot
@@ -356,7 +364,7 @@ def _solve(args) -> None:
 def _study(args) -> None:
     _check_outputs(args)
     _check_settings(args)
-    methods = [m.strip() for m in args.methods.split(",")]
+    methods = split_methods(args.methods)
     if not all(methods):
         raise ValueError(f"--methods must be comma-separated names such as A,B:feasibility, "
                          f"got {args.methods!r}")

@@ -160,19 +160,53 @@ PRESETS = {
 
 
 def resolve(method: str | PSOConfig) -> PSOConfig:
-    """A preset name ("A", "B", "C"), one with another topology ("A-ring", "A-global-ring", ...)
-    or a ``PSOConfig``, validated.
+    """A preset name ("A", "B", "C"), one with another topology ("A-ring", "A-global-ring", ...),
+    either with fields changed in brackets ("A-ring[inertia_end=0.4]", any ``PSOConfig`` field,
+    comma-separated; ``velocity_clamp=none`` for no clamp), or a ``PSOConfig``, validated.
 
     Example:
       >>> resolve("B-ring") == PRESETS["B"]._replace(topology="ring")
       True
+      >>> resolve("A-ring[inertia_end=0.4]").inertia_end
+      0.4
     """
     if isinstance(method, PSOConfig):
         return method.validate()
-    if method in PSO_METHODS:
-        name, _, topology = method.partition("-")
-        return PRESETS[name]._replace(topology=TOPOLOGY_SUFFIXES.get("-" + topology, "global"))
-    raise ValueError(f"method must be one of {PSO_METHODS} or a PSOConfig, got {method!r}")
+    if not isinstance(method, str):
+        raise ValueError(f"method must be a name or a PSOConfig, got {method!r}")
+    name, bracket, fields = method.partition("[")
+    if name not in PSO_METHODS or (bracket and not fields.endswith("]")):
+        raise ValueError(f"method must be one of {PSO_METHODS}, optionally with fields in "
+                         f"brackets such as A-ring[inertia_end=0.4], or a PSOConfig, "
+                         f"got {method!r}")
+    preset, _, topology = name.partition("-")
+    config = PRESETS[preset]._replace(topology=TOPOLOGY_SUFFIXES.get("-" + topology, "global"))
+    if bracket:
+        config = config._replace(**_fields_in_brackets(method, fields[:-1]))
+    return config.validate()
+
+
+def _fields_in_brackets(method: str, text: str) -> dict:
+    """``"inertia_end=0.4,topology=ring"`` as PSOConfig field values (numbers as floats)."""
+    changed = {}
+    for item in text.split(","):
+        field, equals, value = (part.strip() for part in item.partition("="))
+        if field not in PSOConfig._fields or not equals or not value:
+            raise ValueError(f"method {method!r}: each change in brackets must be FIELD=VALUE "
+                             f"with FIELD one of {PSOConfig._fields}, got {item!r}")
+        if field in changed:
+            raise ValueError(f"method {method!r}: {field} is changed twice")
+        if isinstance(PSOConfig._field_defaults[field], str):
+            changed[field] = value
+        elif field == "velocity_clamp" and value.lower() == "none":
+            changed[field] = None
+        else:
+            try:
+                changed[field] = float(value)
+            except ValueError:
+                raise ValueError(f"method {method!r}: {field} must be a number, "
+                                 f"got {value!r}") from None
+    return changed
 
 
 class SwarmState(NamedTuple):

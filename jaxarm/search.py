@@ -202,8 +202,10 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
 
     Args:
       problem: the problem.
-      method: "A", "B", "C" (the paper's Table 2 presets), a ``PSOConfig``, or an evosax
-        strategy, ``"evosax:CMA_ES"`` (``jaxarm.evolution``; optional dependency).
+      method: "A", "B", "C" (the paper's Table 2 presets), "A-ring" and the other names
+        ``pso.resolve`` takes ("A-ring[inertia_end=0.4]": fields changed in brackets), a
+        ``PSOConfig``, or an evosax strategy, ``"evosax:CMA_ES"`` (``jaxarm.evolution``;
+        optional dependency).
       n_particles: swarm size (paper: 20).
       n_iters: PSO updates (paper: 100); iteration 0 is the initial swarm.
       n_restarts: independent swarms.

@@ -33,7 +33,8 @@ class Variant(NamedTuple):
 
 
 def parse_variants(methods: Sequence, constraint: str) -> list[Variant]:
-    """Study rows from ``"A"``, ``"A:feasibility"``, ``"evosax:CMA_ES"`` (any evosax strategy,
+    """Study rows from ``"A"``, ``"A:feasibility"``, ``"A-ring[inertia_end=0.4]:feasibility"``
+    (``pso.resolve``'s names), ``"evosax:CMA_ES"`` (any evosax strategy,
     ``jaxarm.evolution``; death or feasibility only), ``PSOConfig``s or ``Variant``s.
 
     Entries that name no constraint get ``constraint``. A ``PSOConfig`` is labelled "custom",
@@ -245,7 +246,8 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_see
 
     Args:
       problem: the problem.
-      methods: entries "A", "B", "C", "A:feasibility" (method:constraint), ``PSOConfig``s or
+      methods: entries "A", "B", "C", "A:feasibility" (method:constraint),
+        "A-ring[inertia_end=0.4]:feasibility" (``pso.resolve``'s names), ``PSOConfig``s or
         ``Variant``s (see ``parse_variants``); labels must be unique.
       n_seeds: seeds (restarts) per method; the same restart indices for every method.
       n_iters, n_particles: PSO sizes (paper: 100 and 20).

@@ -42,9 +42,12 @@ def test_cli_solve_writes_json_and_plot(capsys, tmp_path):
 def test_cli_solve_json_describes_its_run_well_enough_to_repeat_it(capsys, tmp_path):
     code, _, _ = run_cli(capsys, "solve", "paper-case-2", *SEARCH_SIZES, "--restarts", "3",
                          "--seed", "4", "--init-low", "-60", "--init-high", "80", "--refine",
-                         "all", "--constraint", "feasibility", "--json", str(tmp_path / "r.json"))
+                         "all", "--constraint", "feasibility", "--method",
+                         "A-ring[inertia_end=0.4]", "--json", str(tmp_path / "r.json"))
     assert code == 0
     data = json.loads((tmp_path / "r.json").read_text())
+    assert data["method"] == "A-ring[inertia_end=0.4]"
+    assert data["result"]["config"]["inertia_end"] == 0.4
     assert data["jaxarm"] == jaxarm.__version__ and data["jax"]
     assert data["settings"] == dict(n_particles=6, n_iters=10, n_restarts=3, seed=4,
                                     constraint="feasibility", refine="all")
@@ -90,12 +93,14 @@ def test_cli_solve_times_the_best_path_and_exports_it(capsys, tmp_path):
 
 def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
     code, out, _ = run_cli(capsys, "study", "paper-case-2", *SEARCH_SIZES, "--seeds", "4",
-                           "--methods", "A,A:epsilon", "--pairwise",
+                           "--methods", "A,A:epsilon,A[social_coeff=2,inertia_end=0.5]",
+                           "--pairwise",
                            "--json", str(tmp_path / "s.json"), "--csv", str(tmp_path / "s.csv"),
                            "--plot", str(tmp_path / "s.png"))
     assert code == 0 and "escape rate" in out and "| A:epsilon - A | " in out
-    assert len((tmp_path / "s.csv").read_text().splitlines()) == 9
-    assert len(json.loads((tmp_path / "s.json").read_text())["methods"]) == 2
+    assert "| A[social_coeff=2,inertia_end=0.5] | death |" in out  # its comma kept inside
+    assert len((tmp_path / "s.csv").read_text().splitlines()) == 13
+    assert len(json.loads((tmp_path / "s.json").read_text())["methods"]) == 3
     assert (tmp_path / "s.png").stat().st_size > 5000
 
 
@@ -106,6 +111,10 @@ def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
         (["solve", "missing.toml"], "cannot read scenario file 'missing.toml'"),
         (["solve", "paper-case-2", "--degree", "4"], "degree must be >= 6, got 4"),
         (["study", "paper-case-2", "--methods", "A,Z"], "method must be one of"),
+        (["study", "paper-case-2", "--methods", "A,A[foo=1]"], "must be FIELD=VALUE"),
+        (["solve", "paper-case-2", "--method", "A-ring[inertia_end=x]"],
+         "inertia_end must be a number, got 'x'"),
+        (["solve", "paper-case-2", "--method", "evosax:DE"], "method must be one of"),
         (["solve", "paper-case-2", "--seed", "-3"], "seed must be an integer"),
         (["study", "paper-case-2", "--methods", "A,A"], "unique labels, got 'A' twice"),
         (["solve", "paper-case-2", "--samples", "50"], "--samples: n_samples must be odd"),
@@ -215,6 +224,7 @@ def test_the_cli_offers_the_librarys_choices_without_importing_jax():
     assert done.stdout.strip() == "ok", done.stderr
     commands = cli.build_parser()._subparsers._group_actions[0].choices
     options = {a.dest: a.choices for a in commands["solve"]._actions if a.choices}
-    assert options["method"] == choices.PSO_METHODS
+    method = next(a for a in commands["solve"]._actions if a.dest == "method")
+    assert "method" not in options and all(name in method.help for name in choices.PSO_METHODS)
     assert options["constraint"] == choices.CONSTRAINTS
     assert options["collision"] == choices.COLLISION_MODES

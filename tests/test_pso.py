@@ -1,5 +1,7 @@
 """The PSO engine (``jaxarm.pso``): velocity rules, presets, bests, ties, NaN."""
 
+import re
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -182,6 +184,25 @@ def test_ring_names_are_the_presets_with_the_ring_topology():
     assert variant == ("A-ring:epsilon", pso.PRESETS["A"]._replace(topology="ring"), "epsilon")
     variant, = parse_variants(["B-global-ring:epsilon"], "death")
     assert variant.config == pso.PRESETS["B"]._replace(topology="global-ring")
+
+
+def test_fields_in_brackets_change_a_named_method():
+    assert (pso.resolve("A-ring[inertia_end=0.4]")
+            == pso.PRESETS["A"]._replace(topology="ring", inertia_end=0.4))
+    assert (pso.resolve("C[ tie_break = random , velocity_clamp=0.05]")
+            == pso.PRESETS["C"]._replace(tie_break="random", velocity_clamp=0.05))
+    assert pso.resolve("A[velocity_clamp=none]").velocity_clamp is None
+    for method, message in [("A[inertia_end=x]", "inertia_end must be a number, got 'x'"),
+                            ("A[speed=1]", "must be FIELD=VALUE with FIELD one of"),
+                            ("A[]", "must be FIELD=VALUE"),
+                            ("A[inertia_end]", "must be FIELD=VALUE"),
+                            ("A[inertia_end=0.4", "optionally with fields in brackets"),
+                            ("D[inertia_end=0.4]", "method must be one of"),
+                            ("A[beta=1,beta=2]", "beta is changed twice"),
+                            ("A[inertia_end=-1]", "inertia_end must be a finite number >= 0"),
+                            ("A[topology=star]", "topology must be one of")]:
+        with pytest.raises(ValueError, match=re.escape(message)):
+            pso.resolve(method)
 
 
 def test_global_ring_follows_the_global_best_then_the_ring():
