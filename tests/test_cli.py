@@ -28,26 +28,29 @@ def test_cli_scenarios_lists_every_shipped_scenario(capsys):
 
 
 def test_cli_solve_writes_json_and_plot(capsys, tmp_path):
+    method = "A-ring[inertia_end=0.4]"  # a named method with a field changed
     code, out, _ = run_cli(capsys, "solve", "paper-case-2", *SEARCH_SIZES, "--restarts", "2",
-                           "--json", str(tmp_path / "r.json"), "--plot", str(tmp_path / "r.png"))
+                           "--method", method, "--json", str(tmp_path / "r.json"),
+                           "--plot", str(tmp_path / "r.png"))
     assert code == 0 and "fitness" in out
     data = json.loads((tmp_path / "r.json").read_text())
     assert len(data["result"]["best_x"]) == 3 and len(data["result"]["history"]) == 11
-    assert data["scenario"] == "paper-case-2"
+    assert data["scenario"] == "paper-case-2" and data["method"] == method
     loaded = jaxarm.Result.from_dict(data["result"])
-    assert loaded.restarts.best_x.shape == (2, 3) and loaded.method == "A"
+    assert loaded.restarts.best_x.shape == (2, 3) and loaded.method == method
+    assert loaded.config == jaxarm.PRESETS["A"]._replace(topology="ring", inertia_end=0.4)
+    saved = jaxarm.load_run(tmp_path / "r.json")  # the name alone repeats the run
+    again = jaxarm.solve(saved.problem, saved.method, **saved.settings)
+    np.testing.assert_array_equal(again.restarts.best_x, loaded.restarts.best_x)
     assert (tmp_path / "r.png").stat().st_size > 5000
 
 
 def test_cli_solve_json_describes_its_run_well_enough_to_repeat_it(capsys, tmp_path):
     code, _, _ = run_cli(capsys, "solve", "paper-case-2", *SEARCH_SIZES, "--restarts", "3",
                          "--seed", "4", "--init-low", "-60", "--init-high", "80", "--refine",
-                         "all", "--constraint", "feasibility", "--method",
-                         "A-ring[inertia_end=0.4]", "--json", str(tmp_path / "r.json"))
+                         "all", "--constraint", "feasibility", "--json", str(tmp_path / "r.json"))
     assert code == 0
     data = json.loads((tmp_path / "r.json").read_text())
-    assert data["method"] == "A-ring[inertia_end=0.4]"
-    assert data["result"]["config"]["inertia_end"] == 0.4
     assert data["jaxarm"] == jaxarm.__version__ and data["jax"]
     assert data["settings"] == dict(n_particles=6, n_iters=10, n_restarts=3, seed=4,
                                     constraint="feasibility", refine="all")
