@@ -24,6 +24,10 @@ Requires ``pip install -e '.[bench]'``.
 from __future__ import annotations
 
 import argparse
+import atexit
+import json
+import os
+import tempfile
 import time
 
 import jax
@@ -98,8 +102,25 @@ def _cost_fn(problem, penalty):
     return cost
 
 
-def run_pyswarms(problem, penalty, n_seeds):
+def _import_pyswarms():
+    """pyswarms, with its logging kept quiet: by default every optimizer it builds configures
+    logging with a file handler that creates ``report.log`` in the working directory. Its
+    ``LOG_CFG`` variable names a logging configuration (YAML, which JSON is) to use instead."""
+    if "LOG_CFG" not in os.environ:
+        quiet = {"version": 1, "disable_existing_loggers": False,
+                 "handlers": {"none": {"class": "logging.NullHandler"}},
+                 "loggers": {"pyswarms": {"handlers": ["none"], "propagate": False}}}
+        with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as config:
+            json.dump(quiet, config)
+        atexit.register(os.remove, config.name)
+        os.environ["LOG_CFG"] = config.name
     import pyswarms
+
+    return pyswarms
+
+
+def run_pyswarms(problem, penalty, n_seeds):
+    pyswarms = _import_pyswarms()
 
     low, high = problem.bounds()
     cost = _cost_fn(problem, penalty)
