@@ -299,7 +299,7 @@ def share_capacities(problems) -> list[Problem]:
     runs slower than at its own capacities (death-trap, 1000 sampled restarts, by hand:
     1.50 s at (0, 1, 4), 2.05 s at (4, 4, 4)); its results are as valid, though not always
     bit for bit the same (another compiled program can round differently in the last bits).
-    The quick report uses it for its suite and its degree comparison.
+    The quick report uses it for its suite, its rules section and its degree comparison.
 
     Args:
       problems: ``Problem``s.

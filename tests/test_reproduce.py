@@ -6,11 +6,14 @@ import subprocess
 import sys
 import threading
 import time
+import types
 
 import jax
+import numpy as np
 import pytest
 
-from jaxarm import cli, reproduce
+import jaxarm
+from jaxarm import cli, published, reproduce
 
 
 def run_cli(capsys, *argv):
@@ -31,7 +34,8 @@ def test_cli_reproduce_paper_writes_a_report_with_every_table(capsys, tmp_path):
     for heading in ("Table 2", "Escape probability", "Table 3", "Tables 4 and 5", "Table 6",
                     "shipped suite", "reconstructed", "Constraint rules compared",
                     "| death-trap | A:epsilon |", "feasible set of case II", "free share",
-                    "Case II's optimum in seconds", "| all four | "):
+                    "Case II's optimum in seconds", "| all four | ", "| certified |",
+                    "proves free for every r: A "):
         assert heading in report
     for image in ("case1_escape_rates.png", "case1_motion.png", "suite_escape_rates.png",
                   "case2_feasible_slices.png", "death-trap_rule_curves.png",
@@ -61,6 +65,23 @@ def test_the_rules_section_adds_evosax_rows_only_where_it_is_installed(monkeypat
     methods, note = reproduce.rule_methods()
     assert methods == reproduce.RULES + reproduce.EVOSAX_RULES and "CMA-ES" in note
     assert all(evolution.is_strategy(m) for m in reproduce.EVOSAX_RULES)
+
+
+def test_certified_escapes_counts_only_the_restarts_that_ended_free_per_outcome():
+    """The report's *certified* cells: per outcome, the best paths ``certify`` proves free out
+    of those flagged free; Table 2's 17 published paths are free on the refitted case 1 and
+    a6 = 0 (the obstacle-free optimum) is blocked."""
+    case1 = jaxarm.load_scenario("paper-case-1")
+    table_2 = published.a6_array(published.CASE_1)
+    blocked = np.zeros((1, 3))
+
+    def outcome(x, feasible):
+        return types.SimpleNamespace(best_x=x, feasible=np.asarray(feasible, bool))
+
+    outcomes = [outcome(np.concatenate([blocked, table_2]), [True] * 18),
+                outcome(blocked, [False]),
+                outcome(np.concatenate([blocked, table_2[:1]]), [False, True])]
+    assert reproduce._certified_escapes(case1, outcomes) == [(17, 18), (0, 0), (1, 1)]
 
 
 def _section(title, text, long=False, wait=None):
