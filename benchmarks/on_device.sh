@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# The GPU measurements in one short run, for a lent NVIDIA machine (its image has JAX with CUDA,
+# Python 3.12 and no network): fitness-kernel throughput (benchmarks/throughput.py), the escape
+# study's time up to 100,000 restarts (benchmarks/escape_bench.py) and the certified check's
+# tests on the GPU, which runs its bisection with 1024 lanes there instead of 64. Each step
+# has its own time limit (about 6 minutes in all) and its log in $OUT; a step that fails or
+# runs out of time does not stop the next.
+#
+#   benchmarks/on_device.sh prepare   # here, first: wheels the image lacks, into .whl/
+#   benchmarks/on_device.sh           # there: device tool, carry [".whl"], timeout_s 420
+#   QUICK=1 OUT=/tmp/dry PYTHON=.venv/bin/python benchmarks/on_device.sh  # dry run, small sizes
+set -uo pipefail
+cd "$(dirname "$0")/.."
+WHEELS=.whl
+if [ "${1:-}" = prepare ]; then
+  exec python3 -m pip download --quiet --no-deps --only-binary=:all: --python-version 3.12 \
+    --implementation cp --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 \
+    --platform manylinux2014_x86_64 -d "$WHEELS" shapely==2.2.0 tomli-w==1.2.0
+fi
+OUT="${OUT:?set OUT to the folder for the logs}"
+PYTHON="${PYTHON:-python3}"
+export PYTHONPATH="$PWD" PYTHONUNBUFFERED=1 JAXARM_CACHE_DIR=off
+# The wheels are installed only where their packages are missing (tomli-w for jaxarm itself,
+# shapely for the tests' oracle).
+if ! "$PYTHON" -c "import shapely, tomli_w" 2>/dev/null; then
+  "$PYTHON" -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
+    --target /tmp/site "$WHEELS"/*.whl || exit
+  export PYTHONPATH="/tmp/site:$PWD"
+fi
+if [ -n "${QUICK:-}" ]; then
+  batch=(--max-batch 10000 --certified-max-batch 10000 --numpy-max-batch 10000 --repeats 2)
+  restarts=(--repeats 1 --max-restarts 100)
+  tests=(tests/test_certified.py -k "sound_and_not_too_conservative")
+else
+  batch=(--max-batch 10000000 --certified-max-batch 1000000 --numpy-max-batch 100000
+         --repeats 5)
+  restarts=(--repeats 3 --max-restarts 100000)
+  tests=(tests/test_certified.py)
+fi
+platform=$("$PYTHON" -c "import jax; print('cuda' if jax.default_backend() == 'gpu' else 'cpu')")
+
+step() {  # name, seconds, command...: the command's output into $OUT/name.log and its tail here
+  local name=$1 limit=$2 began=$SECONDS
+  shift 2
+  echo "== $name (limit ${limit} s): $*"
+  timeout "$limit" "$@" >"$OUT/$name.log" 2>&1
+  local code=$?
+  tail -n 30 "$OUT/$name.log"
+  echo "== $name: exit $code after $((SECONDS - began)) s" | tee -a "$OUT/steps.log"
+}
+
+step devices 60 bash -c "nvidia-smi -L; $PYTHON -c 'import jax, jaxarm; \
+print(\"jax\", jax.__version__, jax.devices(), \"jaxarm\", jaxarm.__version__)'"
+step throughput 100 "$PYTHON" benchmarks/throughput.py "${batch[@]}"
+step escape 120 "$PYTHON" benchmarks/escape_bench.py "${restarts[@]}"
+step tests 100 env JAX_PLATFORMS="$platform" "$PYTHON" -m pytest -q -p no:cacheprovider \
+  "${tests[@]}"
