@@ -7,8 +7,9 @@ Then every shipped scenario's feasible share of the init range, with the iterati
 predicts for 20 particles beside the one measured (the initial swarms of ``--start-seeds``
 seeds, with the Wilson interval of that share).
 
-The rules are ``reproduce-paper``'s, and one more: preset A on the ring with its inertia
-falling from 1 to 0.4 instead of 0, under feasibility rules (``SLOW_RING``).
+The rules are ``reproduce-paper``'s (``jaxarm.reproduce.RULES``, and evosax's where it is
+installed), among them preset A on the ring with its inertia falling from 1 to 0.4 instead of
+0, under feasibility rules.
 
     .venv/bin/python benchmarks/rules_bench.py [--seeds 300] [--modes sampled,certified]
         [--parts rules,share] [--draws 100000] [--start-seeds 3000] [--scenarios a,b]
@@ -27,14 +28,9 @@ from jaxarm.choices import split_methods
 from jaxarm.reproduce import rule_methods
 from jaxarm.stats import wilson_interval
 
-# Chosen by hand on death-trap's 300 seeds of base seed 0 (certified check) among inertia
-# ending at 0, 0.67 and 0.4 from 1, and 0.9 -> 0.4 (benchmarks/RESULTS.md, *Constraint rules
-# and topologies*).
-SLOW_RING = "A-ring[inertia_end=0.4]:feasibility"
-
 
 def rules_table(problem, n_seeds: int, labels: list[str] | None, seed: int) -> list[str]:
-    methods = rule_methods()[0] + [SLOW_RING]
+    methods = rule_methods()[0]
     if labels is not None:  # the death penalty always: the last column compares with it
         unknown = set(labels) - set(methods)
         if unknown:
