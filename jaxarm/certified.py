@@ -318,7 +318,7 @@ def _lowest_set_bit(words):
     of word w is index 32 w + b), shape (n,); a large number where none is set."""
     lowest = words & (~words + jnp.uint32(1))
     trailing = jax.lax.population_count(lowest - jnp.uint32(1)).astype(jnp.int32)
-    word = jnp.arange(words.shape[-1], dtype=jnp.int32)
+    word = jnp.arange(words.shape[-1], dtype=jnp.int32)[None]
     index = jnp.where(words != 0, 32 * word + trailing, 1 << 30)
     return index.min(axis=-1)  # int32 with 64-bit types on too: the loop carries it
 
@@ -432,7 +432,7 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
         # Or move on: to the next failing window of the path.
         window_done = lanes.pending == 0
         done_bit = jnp.left_shift(jnp.uint32(1), (piece.sample & 31).astype(jnp.uint32))
-        word_index = jnp.arange(lanes.windows.shape[1])
+        word_index = jnp.arange(lanes.windows.shape[1])[None]
         remaining = jnp.where(window_done[:, None] & (piece.sample[:, None] >> 5 == word_index),
                               lanes.windows & ~done_bit[:, None], lanes.windows)
         next_window = _lowest_set_bit(remaining)

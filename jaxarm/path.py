@@ -146,6 +146,9 @@ def joint_angle_list(start, goal, x, basis, order: int = 0, per_path: bool = Fal
     basis = jnp.asarray(basis, dtype=x.dtype)
     free = free_by_joint(x, start.shape[-1])  # (..., degree - 5, n_joints)
     time_axis = (None,) if basis.ndim > 1 and not per_path else ()  # broadcast along times
+    lead = x.ndim - basis.ndim + len(time_axis)
+    if lead > 0:  # a basis shared by the batch: its leading axes made explicit
+        basis = basis.reshape((1,) * lead + basis.shape)
     # Unrolled over joints and free powers: elementwise, so it fuses with what follows
     # (a batched contraction over such small axes compiles to a slow loop on CPU).
     angles = []

@@ -70,9 +70,11 @@ def surrogate_gradient(spec, arrays, x, barrier_weight, margin, temperature):
 
     by_angle, by_rate = jax.grad(total, argnums=(0, 1))(angle, rate)  # per joint (..., n_samples)
     n_joints = len(angle)
+    lead = (1,) * (by_angle[0].ndim - 1)  # the samples' basis values, broadcast over the batch
+    bases = [basis.reshape(lead + basis.shape) for basis in bases]
     # x[..., m * n_joints + k] is joint k's coefficient of the (m + 1)-th free basis function
-    return jnp.stack([_sum_over_samples(bases[0][:, m + 1] * by_angle[k]
-                                        + bases[1][:, m + 1] * by_rate[k])
+    return jnp.stack([_sum_over_samples(bases[0][..., m + 1] * by_angle[k]
+                                        + bases[1][..., m + 1] * by_rate[k])
                       for m in range(x.shape[-1] // n_joints) for k in range(n_joints)], axis=-1)
 
 
@@ -90,8 +92,10 @@ def _angles_and_rates(arrays, x, bases):
 
 
 def _surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin, temperature):
-    weights = jnp.asarray(path.simpson_weights(spec.n_samples), angle[0].dtype)
-    distance = _sum_over_samples(weights * path.arc_length_rate(rate))  # paper eq. 5
+    speed = path.arc_length_rate(rate)  # (..., n_samples)
+    weights = jnp.asarray(path.simpson_weights(spec.n_samples), speed.dtype)
+    distance = _sum_over_samples(weights.reshape((1,) * (speed.ndim - 1) + weights.shape)
+                                 * speed)  # paper eq. 5
     margin = margin + arrays.margin  # the barrier's margin on top of the problem's
     bounds = collision_lib.posture_clearance_bound(arrays.lengths, arrays.world, angle)
     barrier = sum(temperature * jax.nn.softplus((margin - c) / temperature) for c in bounds)

@@ -303,6 +303,8 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
       >>> int(state.iteration)
       1
     """
+    low, high = jnp.reshape(low, (1, -1)), jnp.reshape(high, (1, -1))  # rows, like positions
+
     def scores(rule_state, measured, iteration):
         return constraints.score(constraint, rule_state, measured, iteration, n_iters)
 

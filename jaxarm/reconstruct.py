@@ -183,6 +183,7 @@ def sweep_distances(problem: Problem, x, points, n_points: int, chunk: int = 256
         ab = b.reshape(a.shape) - a
 
         def to_point(p):
+            p = p.reshape(1, 1, 2)  # one point, against every path's links
             t = jnp.clip(jnp.sum((p - a) * ab, -1) / jnp.sum(ab * ab, -1), 0.0, 1.0)
             return jnp.min(jnp.linalg.norm(a + t[..., None] * ab - p, axis=-1), axis=-1)
 

@@ -230,6 +230,20 @@ def _on_end_points(kernel, start, end, world):
     return jnp.moveaxis(kernel(*coordinates, world), 0, -1)
 
 
+def _slots_lead(function):
+    """``function`` traced with NumPy's rank promotion allowed (whatever the setting): its
+    obstacle data, shape (n_slots, 1, ..., 1), meets coordinates of shape (...) that way.
+    Made explicit, the leading axis gave the same values, but the compiled gradient of
+    refine's surrogate on death-trap no longer matched the one computed op by op
+    (tests/test_polish.py: a component 13 % off, or of the other sign, two ways of writing it): the
+    separating-axis gap is a maximum of pieces, and rounding picks the piece at near-ties."""
+    @functools.wraps(function)
+    def promoting(*args, **kwargs):
+        with jax.numpy_rank_promotion("allow"):
+            return function(*args, **kwargs)
+    return promoting
+
+
 def point_segment_distance(px, py, ax, ay, bx, by):
     """Distance from points (px, py) to segments (a, b); all arguments broadcast together."""
     dx, dy = bx - ax, by - ay
@@ -262,6 +276,7 @@ def circle_separation_xy(sx, sy, ex, ey, world: WorldArrays):
     return jnp.stack(slots) if slots else jnp.zeros((0,) + sx.shape, sx.dtype)
 
 
+@_slots_lead
 def polygon_overlap_gap_xy(sx, sy, ex, ey, world: WorldArrays):
     """Largest separating-axis gap between segments and every polygon slot: a lower bound on
     their distance when positive, minus the penetration depth otherwise; +inf for empty slots.
@@ -310,6 +325,7 @@ def _edge_distance(sx, sy, ex, ey, vx, vy, wx, wy, valid):
     return jnp.minimum(to_edge, from_vertex)
 
 
+@_slots_lead
 def polygon_separation_xy(sx, sy, ex, ey, world: WorldArrays, vertex_axis: bool = False):
     """Signed separation between segments and every polygon slot: the exact distance when
     disjoint, minus the penetration depth when overlapping, +inf for empty slots.

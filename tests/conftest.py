@@ -19,9 +19,14 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from hypothesis import settings  # noqa: E402
 
+import jax  # noqa: E402
+
 import jaxarm  # noqa: E402
 
 jaxarm.enable_compilation_cache()
+# Arrays of different ranks never broadcast by accident (jaxarm.world allows it where its
+# obstacle slots lead on purpose).
+jax.config.update("jax_numpy_rank_promotion", "raise")
 
 
 def pytest_unconfigure(config):
