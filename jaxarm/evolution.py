@@ -31,6 +31,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxarm import pso
+from jaxarm.programs import rank_promotion_allowed
 from jaxarm.constraints import constraint_index
 
 PREFIX = "evosax:"
@@ -136,6 +137,9 @@ def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high,
     algorithms = _evosax_algorithms()
     strategy = getattr(algorithms, config.strategy)(population_size=n_particles,
                                                     solution=jnp.zeros_like(low))
+    # evosax broadcasts arrays of different ranks: its calls are traced with that allowed
+    initial, asked, told_by = (rank_promotion_allowed(getattr(strategy, name))
+                               for name in ("init", "ask", "tell"))
     params = strategy.default_params
     if hasattr(params, "std_init"):
         params = params.replace(std_init=jnp.mean(high - low) / 4)
@@ -147,10 +151,10 @@ def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high,
         draw, start_key, ask, tell = jax.random.split(key, 4)
         if distribution:
             mean = jax.random.uniform(draw, low.shape, low.dtype, low, high)
-            x, inner = strategy.ask(ask, strategy.init(start_key, mean, params), params)
+            x, inner = asked(ask, initial(start_key, mean, params), params)
         else:  # the strategy's state is made from the first costs: a placeholder until then
             x = jax.random.uniform(draw, (n_particles,) + low.shape, low.dtype, low, high)
-            shapes = jax.eval_shape(strategy.init, start_key, x, jnp.zeros(n_particles, x.dtype),
+            shapes = jax.eval_shape(initial, start_key, x, jnp.zeros(n_particles, x.dtype),
                                     params)
             inner = jax.tree.map(lambda leaf: jnp.zeros(leaf.shape, leaf.dtype), shapes)
         zero = jnp.zeros((), x.dtype)
@@ -163,13 +167,13 @@ def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high,
                          -measured.fitness)
 
         def told():
-            return strategy.tell(state.tell_key, x, cost, state.inner, params)[0]
+            return told_by(state.tell_key, x, cost, state.inner, params)[0]
 
         if distribution:
             inner = told()
         else:  # the initial population makes the strategy's state
             inner = pso.on_first_iteration(
-                iteration, lambda: strategy.init(state.tell_key, x, cost, params), told)
+                iteration, lambda: initial(state.tell_key, x, cost, params), told)
         best = jnp.argmin(cost)  # the first on ties
         better = cost[best] < state.best_cost
         keep = lambda new, old: jnp.where(better, new, old)  # noqa: E731
@@ -186,7 +190,7 @@ def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high,
 
     def ask(key, state: StrategyState):
         ask_key, tell_key = jax.random.split(key)
-        x, inner = strategy.ask(ask_key, state.inner, params)
+        x, inner = asked(ask_key, state.inner, params)
         return state._replace(inner=inner, tell_key=tell_key), x
 
     return pso.Swarm(start=start, tell=tell, ask=ask, measure=measure_fn)

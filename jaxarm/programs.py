@@ -45,6 +45,17 @@ except ImportError:  # pragma: no cover
     _trace_state_clean = None
 
 
+def rank_promotion_allowed(function):
+    """``function`` traced with NumPy's rank promotion allowed, whatever the caller's
+    ``jax_numpy_rank_promotion`` (jaxarm's tests raise on it): for code that broadcasts arrays
+    of different ranks on purpose (``jaxarm.world``'s polygon kernels, evosax's strategies)."""
+    @functools.wraps(function)
+    def promoting(*args, **kwargs):
+        with jax.numpy_rank_promotion("allow"):
+            return function(*args, **kwargs)
+    return promoting
+
+
 def _at_top_level(args) -> bool:
     """Whether a call with these arguments is outside any trace."""
     if _trace_state_clean is None:  # a JAX without it: tracer arguments are the usual sign

@@ -24,6 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm._validate import finite_vector
+from jaxarm.programs import rank_promotion_allowed
 
 _TINY = 1e-30
 
@@ -230,20 +231,6 @@ def _on_end_points(kernel, start, end, world):
     return jnp.moveaxis(kernel(*coordinates, world), 0, -1)
 
 
-def _slots_lead(function):
-    """``function`` traced with NumPy's rank promotion allowed (whatever the setting): its
-    obstacle data, shape (n_slots, 1, ..., 1), meets coordinates of shape (...) that way.
-    Made explicit, the leading axis gave the same values, but the compiled gradient of
-    refine's surrogate on death-trap no longer matched the one computed op by op
-    (tests/test_polish.py: a component 13 % off, or of the other sign, two ways of writing it): the
-    separating-axis gap is a maximum of pieces, and rounding picks the piece at near-ties."""
-    @functools.wraps(function)
-    def promoting(*args, **kwargs):
-        with jax.numpy_rank_promotion("allow"):
-            return function(*args, **kwargs)
-    return promoting
-
-
 def point_segment_distance(px, py, ax, ay, bx, by):
     """Distance from points (px, py) to segments (a, b); all arguments broadcast together."""
     dx, dy = bx - ax, by - ay
@@ -276,7 +263,7 @@ def circle_separation_xy(sx, sy, ex, ey, world: WorldArrays):
     return jnp.stack(slots) if slots else jnp.zeros((0,) + sx.shape, sx.dtype)
 
 
-@_slots_lead
+@rank_promotion_allowed
 def polygon_overlap_gap_xy(sx, sy, ex, ey, world: WorldArrays):
     """Largest separating-axis gap between segments and every polygon slot: a lower bound on
     their distance when positive, minus the penetration depth otherwise; +inf for empty slots.
@@ -284,7 +271,13 @@ def polygon_overlap_gap_xy(sx, sy, ex, ey, world: WorldArrays):
 
     The polygon slots stay an array axis here (unlike ``circle_slots``): written out per slot
     and per vertex, the certified check of a world with 8 polygon slots took 4 minutes and 8 GB
-    to compile. The sampled check calls it one slot at a time (``polygon_slots``)."""
+    to compile. The sampled check calls it one slot at a time (``polygon_slots``).
+
+    The obstacle data, shape (n_slots, 1, ..., 1), meet the coordinates by NumPy's rank
+    promotion. With the coordinates' leading axis made explicit the values were the same, but
+    the compiled gradient of refine's surrogate on death-trap no longer matched the one
+    computed op by op (tests/test_polish.py: a component 13 % off, or of the other sign, two
+    ways of writing it): the gap is a maximum of pieces, and rounding picks one at near-ties."""
     dtype, n = sx.dtype, sx.ndim
     # Written out per coordinate and per vertex slot (a static, small count): contractions and
     # reductions over axes of length 2 or 4 compile to slow loops on CPU, while this form
@@ -325,7 +318,7 @@ def _edge_distance(sx, sy, ex, ey, vx, vy, wx, wy, valid):
     return jnp.minimum(to_edge, from_vertex)
 
 
-@_slots_lead
+@rank_promotion_allowed
 def polygon_separation_xy(sx, sy, ex, ey, world: WorldArrays, vertex_axis: bool = False):
     """Signed separation between segments and every polygon slot: the exact distance when
     disjoint, minus the penetration depth when overlapping, +inf for empty slots.
