@@ -175,7 +175,10 @@ def resolve(method: str | PSOConfig) -> PSOConfig:
     if not isinstance(method, str):
         raise ValueError(f"method must be a name or a PSOConfig, got {method!r}")
     name, bracket, fields = method.partition("[")
-    if name not in PSO_METHODS or (bracket and not fields.endswith("]")):
+    if name in PSO_METHODS and bracket and not fields.endswith("]"):
+        raise ValueError(f"method {method!r}: the brackets must close at its end, as in "
+                         f"A-ring[inertia_end=0.4]")
+    if name not in PSO_METHODS:
         raise ValueError(f"method must be one of {PSO_METHODS}, optionally with fields in "
                          f"brackets such as A-ring[inertia_end=0.4], or a PSOConfig, "
                          f"got {method!r}")
