@@ -43,12 +43,13 @@ N_PARTICLES, N_ITERS = 20, 100
 
 
 def path_metrics(problem, x):
-    """Joint-space length and max jerk of a polynomial path, over r in [0, 1]."""
+    """Joint-space length and max jerk of polynomial paths x (..., n_free) over r in [0, 1],
+    each of shape (...)."""
     r = np.linspace(0.0, 1.0, 2001)
     velocity = np.asarray(jaxarm.joint_path(problem, x, r, order=1), np.float64)
     jerk = np.asarray(jaxarm.joint_path(problem, x, r, order=3), np.float64)
-    length = np.trapezoid(np.linalg.norm(velocity, axis=-1), r)
-    return length, np.abs(jerk).max()
+    length = np.trapezoid(np.linalg.norm(velocity, axis=-1), r, axis=-1)
+    return length, np.abs(jerk).max(axis=(-2, -1))
 
 
 def waypoint_metrics(waypoints):
