@@ -37,6 +37,11 @@ def test_result_fields_are_consistent(case2):
     assert np.all(result.restarts.history[escaped, -1] > 0)
     assert (result.method, result.constraint, result.collision) == ("A", "death", "sampled")
     assert "fitness" in result.summary()
+    # what escapes more often is suggested only when nothing escaped
+    assert ("HINT" in result.summary()) == (not result.feasible)
+    restarts = result.restarts
+    colliding = restarts._replace(best_violation=np.ones_like(restarts.best_violation))
+    assert "degree 8" in result._replace(restarts=colliding).summary()
 
 
 def test_certified_search_returns_certified_paths(case2):
