@@ -41,7 +41,7 @@ def test_result_fields_are_consistent(case2):
     assert ("HINT" in result.summary()) == (not result.feasible)
     restarts = result.restarts
     colliding = restarts._replace(best_violation=np.ones_like(restarts.best_violation))
-    assert "degree 8" in result._replace(restarts=colliding).summary()
+    assert "degree 8 in 100 %" in result._replace(restarts=colliding).summary()
 
 
 def test_certified_search_returns_certified_paths(case2):
