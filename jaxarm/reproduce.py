@@ -399,8 +399,13 @@ def _escape_section(report: _Report, case1, case1_study, shared_case1) -> None:
                   "case1_convergence.png", "Escape and evolution, preset A")
     rules = case1_study["A:feasibility"].outcome
     x = rules.best_x[rules.best_restart()]
-    report.add(f"Best path found on case 1: a6 = {exact_text(x)}, fitness "
-               f"{float(fitness(case1, x)):.4f}.", "")
+    proof = certify(shared_case1, x)
+    depth = -float(proof.clearance)
+    between = ("certified free for every r" if bool(proof.free) else
+               f"it enters an obstacle between two samples ({depth:.2g} cm deep)"
+               if bool(proof.colliding) else "not proved free between the samples")
+    report.add(f"Best path found on case 1 (free at the samples): a6 = {exact_text(x)}, "
+               f"fitness {float(fitness(case1, x)):.4f}; `jaxarm.certify`: {between}.", "")
     report.figure(plot.plot_motion(case1, x, title="Case 1: best path (paper Fig. 11)"),
                   "case1_motion.png", "Case 1 motion")
     report.figure(plot.plot_joint_angles(case1, x, title="Case 1: joint angles (paper Fig. 7b)"),
