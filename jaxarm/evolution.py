@@ -31,8 +31,8 @@ import jax
 import jax.numpy as jnp
 
 from jaxarm import pso
-from jaxarm.programs import rank_promotion_allowed
 from jaxarm.constraints import constraint_index
+from jaxarm.programs import rank_promotion_allowed
 
 PREFIX = "evosax:"
 ALIASES = {"DE": "DifferentialEvolution", "GA": "SimpleGA"}

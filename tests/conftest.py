@@ -15,11 +15,10 @@ if _OWN_CACHE:
     os.environ["JAXARM_TEST_RUN_CACHE"] = tempfile.mkdtemp(prefix="jaxarm-test-xla-")
 os.environ["JAXARM_CACHE_DIR"] = os.environ["JAXARM_TEST_RUN_CACHE"]
 
+import jax  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from hypothesis import settings  # noqa: E402
-
-import jax  # noqa: E402
 
 import jaxarm  # noqa: E402
 
