@@ -23,8 +23,8 @@ from hypothesis import settings  # noqa: E402
 import jaxarm  # noqa: E402
 
 jaxarm.enable_compilation_cache()
-# Arrays of different ranks never broadcast by accident (jaxarm.world allows it where its
-# obstacle slots lead on purpose).
+# Arrays of different ranks never broadcast by accident (programs.rank_promotion_allowed marks
+# the code that means to: the world's polygon kernels, evosax's strategies).
 jax.config.update("jax_numpy_rank_promotion", "raise")
 
 
