@@ -27,7 +27,6 @@ from peers import path_metrics  # the metrics OMPL's paths are measured by
 METHODS = "A:feasibility,A-ring[inertia_end=0.4]:feasibility"
 
 
-
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=300)
