@@ -12,8 +12,8 @@ import platform
 import jax
 
 import jaxarm
-from jaxarm.reproduce import compare_degrees_and_refine, degree_refine_table
-from jaxarm.restarts import N_ITERS, N_PARTICLES
+from jaxarm.optim.restarts import N_ITERS, N_PARTICLES
+from jaxarm.paper.report import compare_degrees_and_refine, degree_refine_table
 
 
 def main():

@@ -2,7 +2,7 @@
 
 For each scenario: ``solve(problem, "A", constraint="feasibility", n_restarts=N, seed=0)`` with
 the paper's sampled check, each restart's best path measured by the dense shapely oracle
-(``jaxarm.oracle``, 4,001 points of r); then the same search with the certified check (the
+(``jaxarm.testing``, 4,001 points of r); then the same search with the certified check (the
 default), its escape rate, the best fitness, the share of restarts it certifies, and its time
 beside the sampled search's. Prints a Markdown table for ``benchmarks/RESULTS.md``.
 
@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 import jaxarm
-from jaxarm.oracle import dense_clearance
+from jaxarm.testing import dense_clearance
 
 SCENARIOS = ("paper-case-1", "paper-case-2", "paper-case-3", "narrow-gap", "thin-wall",
              "overhead-shelf", "five-link-detour")

@@ -13,9 +13,10 @@ from __future__ import annotations
 import tempfile
 import time
 
-from jaxarm import polish, problem
-from jaxarm.reproduce import reproduce_paper
-from jaxarm.restarts import compiled_search
+from jaxarm.model import problem
+from jaxarm.optim import refine as refine_lib
+from jaxarm.optim.restarts import compiled_search
+from jaxarm.paper.report import reproduce_paper
 
 
 def main():
@@ -24,7 +25,7 @@ def main():
         reproduce_paper(out, quick=True)
     print(f"search programs {compiled_search._cache_size()}, check programs "
           f"{problem._evaluate_and_certify._cache_size()}, refine programs "
-          f"{polish._compiled_refine._cache_size()}, {time.perf_counter() - began:.0f} s")
+          f"{refine_lib._compiled_refine._cache_size()}, {time.perf_counter() - began:.0f} s")
 
 
 if __name__ == "__main__":

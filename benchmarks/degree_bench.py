@@ -19,10 +19,10 @@ import platform
 
 import jax
 import numpy as np
+from peers import path_metrics  # the metrics OMPL's paths are measured by
 
 import jaxarm
 from jaxarm.choices import split_methods
-from peers import path_metrics  # the metrics OMPL's paths are measured by
 
 METHODS = "A:feasibility,A-ring[inertia_end=0.4]:feasibility"
 

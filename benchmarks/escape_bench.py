@@ -17,7 +17,7 @@ import jax
 import numpy as np
 
 import jaxarm
-from jaxarm.restarts import compiled_search
+from jaxarm.optim.restarts import compiled_search
 
 
 def timed(run):

@@ -36,7 +36,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 import jaxarm
-from jaxarm.problem import evaluate
+from jaxarm.checks.evaluate import evaluate
 from jaxarm.study import wilson_interval
 
 N_PARTICLES, N_ITERS = 20, 100
@@ -276,7 +276,9 @@ def posture_checker(problem):
 
 
 def run_ompl(problem, n_seeds, budget=1.0):
-    from ompl import base as ob, geometric as og, util as ou
+    from ompl import base as ob
+    from ompl import geometric as og
+    from ompl import util as ou
 
     ou.setLogLevel(ou.LogLevel.LOG_ERROR)
     n = problem.n_joints

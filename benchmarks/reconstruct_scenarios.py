@@ -1,6 +1,6 @@
 """How the shipped paper scenarios were reconstructed from the paper's published numbers.
 
-Runs ``jaxarm.reconstruct`` end to end and prints markdown (the source of RESULTS.md's
+Runs ``jaxarm.paper.reconstruct`` end to end and prints markdown (the source of RESULTS.md's
 "Reconstructing the paper's scenarios" section and of the comments in paper-case-*.toml):
 
 1. case 1's start and goal postures fitted to Table 2's 17 fitness values (end-effector held at
@@ -24,8 +24,8 @@ import time
 import numpy as np
 
 import jaxarm
-from jaxarm import published, reconstruct
-from jaxarm.published import a6_array
+from jaxarm.paper import published, reconstruct
+from jaxarm.paper.published import a6_array
 from jaxarm.study import escape_study, wilson_interval
 
 ARM = jaxarm.Arm((30.0, 30.0, 20.0))

@@ -7,7 +7,7 @@ Then every shipped scenario's feasible share of the init range, with the iterati
 predicts for 20 particles beside the one measured (the initial swarms of ``--start-seeds``
 seeds, with the Wilson interval of that share).
 
-The rules are ``reproduce-paper``'s (``jaxarm.reproduce.RULES``, and evosax's where it is
+The rules are ``reproduce-paper``'s (``jaxarm.paper.report.RULES``, and evosax's where it is
 installed), among them preset A on the ring with its inertia falling from 1 to 0.4 instead of
 0, under feasibility rules.
 
@@ -25,7 +25,7 @@ import numpy as np
 
 import jaxarm
 from jaxarm.choices import split_methods
-from jaxarm.reproduce import rule_methods
+from jaxarm.paper.report import rule_methods
 from jaxarm.stats import wilson_interval
 
 

@@ -20,8 +20,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxarm
-from jaxarm import path
-from jaxarm.problem import evaluate
+from jaxarm.checks.evaluate import evaluate
+from jaxarm.model import path
 
 
 def numpy_fitness(problem: jaxarm.Problem, x: np.ndarray) -> np.ndarray:

@@ -15,7 +15,7 @@ import jax
 import numpy as np
 
 import jaxarm
-from jaxarm import constraints
+from jaxarm.optim import constraints
 
 
 def depth_alone(fitness, violation, distance):

@@ -14,10 +14,10 @@ import warnings
 import pdoc
 
 import jaxarm
-from jaxarm import traces
 import jaxarm.plot  # imported here, not under pdoc: matplotlib's font scan runs a subprocess
+from jaxarm._compile import stored_programs
 
-MODULES = ["jaxarm", "jaxarm.plot", "jaxarm.traces"]
+MODULES = ["jaxarm", "jaxarm.plot", "jaxarm._compile.stored_programs"]
 HERE = pathlib.Path(__file__).parent
 
 
@@ -28,7 +28,7 @@ def _resolve_namedtuple_annotations() -> None:
     annotations as strings that pdoc evaluates in the wrong namespace and warns about
     (mitmproxy/pdoc#765); ``typing.get_type_hints`` resolves them in the class's own module.
     """
-    classes = [getattr(jaxarm, name) for name in jaxarm.__all__] + list(vars(traces).values())
+    classes = [getattr(jaxarm, name) for name in jaxarm.__all__] + list(vars(stored_programs).values())
     for cls in classes:
         if isinstance(cls, type) and issubclass(cls, tuple) and hasattr(cls, "_fields"):
             hints = typing.get_type_hints(cls)

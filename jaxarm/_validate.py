@@ -78,3 +78,29 @@ def check_search(*, n_particles, n_iters, seed: int, constraint: str) -> None:
     positive_int("n_iters", n_iters)
     check_seed(seed)
     one_of("constraint", constraint, CONSTRAINTS)
+
+
+def joint_limit_pairs(value, n_joints: int) -> tuple[tuple[float, float], ...]:
+    """``value`` as one ``(low, high)`` pair per joint (rad), or a ValueError naming it."""
+    try:
+        pairs = [tuple(pair) for pair in value]
+    except TypeError:
+        raise ValueError(f"joint_limits must be a list of (low, high) pairs, got {value!r}"
+                         ) from None
+    if len(pairs) != n_joints:
+        raise ValueError(f"joint_limits must have one (low, high) pair per joint ({n_joints}), "
+                         f"got {len(pairs)}: {value!r}")
+    out = []
+    for joint, pair in enumerate(pairs):
+        low, high = (float(v) for v in finite_vector(f"joint_limits[{joint}]", pair, 2))
+        if not low < high:
+            raise ValueError(f"joint_limits[{joint}] must have low < high, "
+                             f"got ({low!r}, {high!r})")
+        out.append((low, high))
+    return tuple(out)
+
+
+def angles_outside(limits, angles) -> list[tuple[int, float]]:
+    """``(joint, angle)`` for every angle outside its range; ``angles`` shape (n_joints,)."""
+    return [(joint, float(angle)) for joint, (angle, (low, high))
+            in enumerate(zip(angles, limits)) if not low <= angle <= high]

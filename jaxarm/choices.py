@@ -9,8 +9,8 @@ import re
 VELOCITY_RULES = ("original", "inertia", "constriction")
 TIE_BREAKS = ("first", "random")
 BETA_MODES = ("dimension", "particle")
-TOPOLOGIES = ("global", "ring", "global-ring")  # see jaxarm.pso
-CONSTRAINTS = ("death", "feasibility", "epsilon", "penalty")  # see jaxarm.constraints
+TOPOLOGIES = ("global", "ring", "global-ring")  # see jaxarm.optim.pso
+CONSTRAINTS = ("death", "feasibility", "epsilon", "penalty")  # see jaxarm.optim.constraints
 COLLISION_MODES = ("sampled", "certified")
 # ``trajectory.min_duration``'s limits (keywords ``max_<name>``, CLI ``--max-<name>``), with units
 LIMIT_UNITS = {"velocity": "rad/s", "acceleration": "rad/s^2", "jerk": "rad/s^3",

@@ -15,8 +15,13 @@ import pathlib
 import sys
 import tempfile
 
-from jaxarm.choices import (COLLISION_MODES, CONSTRAINTS, LIMIT_UNITS, PSO_METHODS,
-                            split_methods)
+from jaxarm.choices import (
+    COLLISION_MODES,
+    CONSTRAINTS,
+    LIMIT_UNITS,
+    PSO_METHODS,
+    split_methods,
+)
 
 EXIT_ERROR = 2
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
@@ -222,7 +227,7 @@ _OVERRIDES = {"collision": "collision", "degree": "degree", "samples": "n_sample
 
 
 def _load(args):
-    from jaxarm.scenarios import load_scenario
+    from jaxarm.io.scenario_files import load_scenario
 
     problem = load_scenario(args.scenario)
     overrides = {field: getattr(args, flag) for flag, field in _OVERRIDES.items()
@@ -247,7 +252,7 @@ def _load(args):
 
 
 def _scenarios(args) -> None:
-    from jaxarm.scenarios import available
+    from jaxarm.io.scenario_files import available
 
     names = available()
     width = max(map(len, names))
@@ -332,13 +337,14 @@ def _report_trajectory(args, problem, result, limits: dict) -> None:
 def _solve(args) -> None:
     _check_outputs(args)
     _check_settings(args)
-    from jaxarm import pso
+    from jaxarm.optim import pso
 
     pso.resolve(args.method)  # a PSO method, checked before the scenario is loaded
     problem = _load(args)
     limits = _timing_limits(args, problem)
     from jaxarm import plot
-    from jaxarm.search import run_record, solve
+    from jaxarm.io.runs import run_record
+    from jaxarm.search import solve
 
     settings = dict(n_particles=args.particles, n_iters=args.iters, n_restarts=args.restarts,
                     seed=args.seed, constraint=args.constraint,
@@ -389,7 +395,7 @@ def _study(args) -> None:
 
 
 def _reproduce(args) -> None:
-    from jaxarm.reproduce import reproduce_paper
+    from jaxarm.paper.report import reproduce_paper
 
     suite = [name.strip() for name in args.suite.split(",")] if args.suite else None
     reproduce_paper(args.out, quick=args.quick, n_seeds=args.seeds, suite=suite,
@@ -425,7 +431,7 @@ def _join_processes(args) -> bool:
 
 def _run(args) -> None:
     if not args.no_cache:
-        from jaxarm.cache import enable_compilation_cache
+        from jaxarm._compile.cache import enable_compilation_cache
 
         try:
             enable_compilation_cache()
@@ -463,7 +469,7 @@ def _leave(code: int) -> int:
     """``code``; but where the report's section threads still run (an error or Ctrl-C stopped
     the report midway), the process ends at once: an exiting Python tears down the XLA runtime
     under them, and the process then aborts instead of returning ``code``."""
-    reproduce = sys.modules.get("jaxarm.reproduce")  # imported only by reproduce-paper
+    reproduce = sys.modules.get("jaxarm.paper.report")  # imported only by reproduce-paper
     if reproduce is not None and reproduce.sections_running():
         sys.stdout.flush()
         sys.stderr.flush()

@@ -12,7 +12,8 @@ from typing import NamedTuple
 import numpy as np
 
 from jaxarm._validate import positive_int
-from jaxarm.problem import Problem, violation
+from jaxarm.checks.evaluate import violation
+from jaxarm.model.problem import Problem
 from jaxarm.stats import wilson_interval
 
 CHUNK = 4096  # paths per compiled call

@@ -20,10 +20,12 @@ from matplotlib import patches
 from matplotlib.animation import FuncAnimation, PillowWriter
 from matplotlib.figure import Figure
 
+from jaxarm._compile.jit import jit
 from jaxarm._validate import positive_int
-from jaxarm.arm import joint_positions
-from jaxarm.problem import Problem, fitness, joint_path
-from jaxarm.programs import jit
+from jaxarm.checks.evaluate import fitness
+from jaxarm.model.arm import joint_positions
+from jaxarm.model.path_functions import joint_path
+from jaxarm.model.problem import Problem
 
 OBSTACLE_STYLE = dict(facecolor="#c9c9c9", edgecolor="#555555", linewidth=1.0, zorder=1)
 

@@ -3,17 +3,17 @@
 from __future__ import annotations
 
 import json
-import pathlib
 import time
 from typing import NamedTuple
 
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm import evolution, pso
 from jaxarm._validate import check_search, positive_int
-from jaxarm.problem import Problem, certify
-from jaxarm.restarts import N_ITERS, N_PARTICLES, RestartOutcome, run_restarts
+from jaxarm.checks.evaluate import certify
+from jaxarm.model.problem import Problem
+from jaxarm.optim import evosax_adapter, pso
+from jaxarm.optim.restarts import N_ITERS, N_PARTICLES, RestartOutcome, run_restarts
 
 
 def exact_text(x) -> str:
@@ -138,7 +138,7 @@ class Result(NamedTuple):
             for name, values in data["restarts"].items()})
         fields = {name: data[name] for name in cls._fields if name != "restarts"}
         config = fields["config"]
-        fields["config"] = (evolution.StrategyConfig(**config) if "strategy" in config
+        fields["config"] = (evosax_adapter.StrategyConfig(**config) if "strategy" in config
                             else pso.PSOConfig(**config))
         return cls(restarts=restarts, **fields)
 
@@ -152,43 +152,6 @@ class Result(NamedTuple):
         record (``load_run`` gives that record's problem and settings too)."""
         data = json.loads(text)
         return cls.from_dict(data["result"] if "settings" in data else data)
-
-
-class SavedRun(NamedTuple):
-    """A ``solve`` call as ``jaxarm solve --json`` saves it: ``solve(problem, method,
-    **settings)`` repeats it, restart for restart."""
-
-    problem: Problem
-    method: str
-    settings: dict  # solve's keyword arguments: n_particles, n_iters, n_restarts, seed, ...
-    result: Result
-    versions: dict  # {"jaxarm": ..., "jax": ...} that produced it
-
-
-def run_record(problem: Problem, method: str, settings: dict, result: Result) -> dict:
-    """What ``solve --json`` writes: the problem as a scenario table, the method, ``solve``'s
-    keyword arguments, the ``Result`` and the jaxarm and jax versions."""
-    import jax
-
-    from jaxarm import __version__
-    from jaxarm.scenarios import scenario_table
-
-    return {"jaxarm": __version__, "jax": jax.__version__, "scenario": problem.name,
-            "problem": scenario_table(problem), "method": method, "settings": dict(settings),
-            "result": result.to_dict()}
-
-
-def load_run(path: str | pathlib.Path) -> SavedRun:
-    """The run that ``jaxarm solve --json path`` saved (see ``run_record``)."""
-    from jaxarm.scenarios import problem_from_table
-
-    data = json.loads(pathlib.Path(path).read_text())
-    missing = {"problem", "method", "settings", "result"} - set(data)
-    if missing:
-        raise ValueError(f"{path} is not a solve --json record: no {sorted(missing)}")
-    return SavedRun(problem=problem_from_table(data["problem"]), method=data["method"],
-                    settings=data["settings"], result=Result.from_dict(data["result"]),
-                    versions={"jaxarm": data.get("jaxarm"), "jax": data.get("jax")})
 
 
 def _plain(array) -> list:
@@ -206,20 +169,20 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
     """Search the problem's free coefficients with PSO, ``n_restarts`` independent swarms at once.
 
     Restart i is seeded by ``fold_in(key(seed), i)``; its result does not depend on
-    ``n_restarts`` (see ``jaxarm.restarts``).
+    ``n_restarts`` (see ``jaxarm.optim.restarts``).
 
     Args:
       problem: the problem.
       method: "A", "B", "C" (the paper's Table 2 presets), "A-ring" and the other names
         ``pso.resolve`` takes ("A-ring[inertia_end=0.4]": fields changed in brackets), a
-        ``PSOConfig``, or an evosax strategy, ``"evosax:CMA_ES"`` (``jaxarm.evolution``;
+        ``PSOConfig``, or an evosax strategy, ``"evosax:CMA_ES"`` (``jaxarm.optim.evosax_adapter``;
         optional dependency).
       n_particles: swarm size (paper: 20).
       n_iters: PSO updates (paper: 100); iteration 0 is the initial swarm.
       n_restarts: independent swarms.
       seed: integer seed in [0, 2**31).
       constraint: "death" (paper eq. 17), "feasibility" (feasibility rules), "epsilon" or
-        "penalty" (``jaxarm.constraints``).
+        "penalty" (``jaxarm.optim.constraints``).
       init_particles: optional particles, shape (n_given, n_free), put at the start of every
         restart's initial swarm (paper Table 6).
       refine: polish with ``jaxarm.refine`` after PSO: False, True (the best restart) or
@@ -234,9 +197,9 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
       True
     """
     began = time.perf_counter()
-    config = evolution.resolve_method(method)
-    evolution.check_constraint(config, constraint, method_label(method))
-    if isinstance(config, evolution.StrategyConfig) and init_particles is not None:
+    config = evosax_adapter.resolve_method(method)
+    evosax_adapter.check_constraint(config, constraint, method_label(method))
+    if isinstance(config, evosax_adapter.StrategyConfig) and init_particles is not None:
         raise ValueError(f"init_particles: {method_label(method)} starts from its own "
                          "population; give init_particles to a PSO method")
     check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint)
@@ -261,14 +224,14 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
 
 def method_label(method) -> str:
     """A preset's or strategy's name, or "custom" for a ``PSOConfig``."""
-    if isinstance(method, evolution.StrategyConfig):
-        return evolution.PREFIX + method.strategy
+    if isinstance(method, evosax_adapter.StrategyConfig):
+        return evosax_adapter.PREFIX + method.strategy
     return method if isinstance(method, str) else "custom"
 
 
 def _refined(problem, outcome: RestartOutcome, every: bool) -> RestartOutcome:
     """The outcome with the best (or every) feasible restart polished by ``refine``."""
-    from jaxarm.polish import refine
+    from jaxarm.optim.refine import refine
 
     rows = np.arange(len(outcome.best_fitness)) if every else np.array([outcome.best_restart()])
     rows = rows[outcome.feasible[rows]]

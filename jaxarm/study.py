@@ -16,47 +16,55 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from jaxarm import evolution, pso
 from jaxarm._validate import check_search, positive_int
+from jaxarm.checks.evaluate import fitness
 from jaxarm.choices import CONSTRAINTS, one_of
-from jaxarm.problem import Problem, fitness
-from jaxarm.restarts import N_ITERS, N_PARTICLES, RestartOutcome, is_compiled, run_restarts
+from jaxarm.model.problem import Problem
+from jaxarm.optim import evosax_adapter, pso
+from jaxarm.optim.restarts import (
+    N_ITERS,
+    N_PARTICLES,
+    RestartOutcome,
+    is_compiled,
+    run_restarts,
+)
 from jaxarm.stats import Comparison, fisher_exact, newcombe_interval, wilson_interval
+
 
 class Variant(NamedTuple):
     """One row of a study: a PSO configuration (or an evosax strategy) under a constraint rule,
     and its label."""
 
     label: str  # e.g. "A", "A:feasibility", "custom", "custom-2", "evosax:CMA_ES"
-    config: pso.PSOConfig  # or ``evolution.StrategyConfig``
+    config: pso.PSOConfig  # or ``evosax_adapter.StrategyConfig``
     constraint: str
 
 
 def parse_variants(methods: Sequence, constraint: str) -> list[Variant]:
     """Study rows from ``"A"``, ``"A:feasibility"``, ``"A-ring[inertia_end=0.4]:feasibility"``
     (``pso.resolve``'s names), ``"evosax:CMA_ES"`` (any evosax strategy,
-    ``jaxarm.evolution``; death or feasibility only), ``PSOConfig``s or ``Variant``s.
+    ``jaxarm.optim.evosax_adapter``; death or feasibility only), ``PSOConfig``s or ``Variant``s.
 
     Entries that name no constraint get ``constraint``. A ``PSOConfig`` is labelled "custom",
     the next ones "custom-2", "custom-3", ...; a ``Variant`` keeps its own label. Labels must
     be unique.
     """
-    if isinstance(methods, (str, pso.PSOConfig, Variant, evolution.StrategyConfig)):
+    if isinstance(methods, (str, pso.PSOConfig, Variant, evosax_adapter.StrategyConfig)):
         methods = [methods]  # one method, not its characters or fields
     variants, n_custom = [], 0
     for method in methods:
         if isinstance(method, Variant):
             one_of("constraint", method.constraint, CONSTRAINTS)
-            variant = method._replace(config=evolution.resolve_method(method.config))
+            variant = method._replace(config=evosax_adapter.resolve_method(method.config))
         else:
-            if isinstance(method, evolution.StrategyConfig):
+            if isinstance(method, evosax_adapter.StrategyConfig):
                 config, rule = method.validate(), one_of("constraint", constraint, CONSTRAINTS)
-                name = evolution.PREFIX + config.strategy
-            elif evolution.is_strategy(method):  # "evosax:CMA_ES", "evosax:CMA_ES:feasibility"
-                strategy, colon, rule = method[len(evolution.PREFIX):].partition(":")
+                name = evosax_adapter.PREFIX + config.strategy
+            elif evosax_adapter.is_strategy(method):  # "evosax:CMA_ES", "evosax:CMA_ES:feasibility"
+                strategy, colon, rule = method[len(evosax_adapter.PREFIX):].partition(":")
                 rule = one_of("constraint", rule if colon else constraint, CONSTRAINTS)
-                name = evolution.PREFIX + strategy
-                config = evolution.resolve(name)
+                name = evosax_adapter.PREFIX + strategy
+                config = evosax_adapter.resolve(name)
             elif isinstance(method, str):
                 name, colon, rule = method.partition(":")
                 rule = one_of("constraint", rule if colon else constraint, CONSTRAINTS)
@@ -67,7 +75,7 @@ def parse_variants(methods: Sequence, constraint: str) -> list[Variant]:
                 n_custom += 1
                 name = "custom" if n_custom == 1 else f"custom-{n_custom}"
             variant = Variant(name if rule == "death" else f"{name}:{rule}", config, rule)
-        evolution.check_constraint(variant.config, variant.constraint, variant.label)
+        evosax_adapter.check_constraint(variant.config, variant.constraint, variant.label)
         if any(v.label == variant.label for v in variants):
             raise ValueError(f"methods must have unique labels, got {variant.label!r} twice")
         variants.append(variant)

@@ -3,7 +3,7 @@ the shortest T that respects velocity, acceleration, jerk and torque limits, and
 
 With r = t / T, the k-th time derivative of a joint angle is ``theta^(k)(r) / T^k`` (eqs. 8-9
 for k = 1, 2). Everything here is for one path and computed in float64: the polynomial with
-NumPy, the torques with ``jaxarm.dynamics`` (jit-compiled, under ``jax.enable_x64``).
+NumPy, the torques with ``jaxarm.model.dynamics`` (jit-compiled, under ``jax.enable_x64``).
 
 ``min_duration``:
 
@@ -31,9 +31,9 @@ import jax
 import numpy as np
 from numpy.polynomial import polynomial as poly
 
-from jaxarm import dynamics, path
 from jaxarm._validate import finite_scalar, finite_vector, positive_scalar
-from jaxarm.problem import Problem
+from jaxarm.model import dynamics, path
+from jaxarm.model.problem import Problem
 
 TORQUE_GRID = 4001  # points of r for the torque search
 TORQUE_REFINE = (8, 65, 3)  # best points refined, points per local grid, rounds

@@ -1,4 +1,4 @@
-"""Arm kinematics (``jaxarm.arm``)."""
+"""Arm kinematics (``jaxarm.model.arm``)."""
 
 import math
 
@@ -9,7 +9,6 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import jaxarm
-
 
 ARM = jaxarm.Arm((30.0, 30.0, 20.0))
 
@@ -58,7 +57,7 @@ def test_inverse_kinematics_errors():
 
 
 def test_float32_sincos_is_accurate_over_a_wide_range():
-    from jaxarm.arm import sincos
+    from jaxarm.model.arm import sincos
 
     angle = np.linspace(-2000.0, 2000.0, 400_001, dtype=np.float32)
     sine, cosine = sincos(jax.numpy.asarray(angle))

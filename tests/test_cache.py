@@ -1,10 +1,10 @@
-"""The persistent compilation cache (``jaxarm.cache``): where it lives, on and off."""
+"""The persistent compilation cache (``jaxarm._compile.cache``): where it lives, on and off."""
 
 import sys
 
 import pytest
 
-from jaxarm import cache
+from jaxarm._compile import cache
 
 
 def test_cache_dir_follows_the_environment(monkeypatch, tmp_path):

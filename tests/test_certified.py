@@ -1,17 +1,18 @@
-"""The certified continuous check (``jaxarm.certified``, ``jaxarm.certify``) against an independent
+"""The certified continuous check (``jaxarm.checks.certified``, ``jaxarm.certify``) against an independent
 dense oracle (shapely, float64)."""
 
 import numpy as np
 import pytest
+from random_worlds import thin_wall_problem
 
 import jaxarm
-from jaxarm import certified, published
-from jaxarm.oracle import dense_clearance
-from jaxarm.problem import SMALL_BATCH, _evaluate_and_certify
-from jaxarm.programs import jit
-from jaxarm.published import a6_array
-
-from oracles import oracle_path_collides, thin_wall_problem
+from jaxarm._compile.jit import jit
+from jaxarm._compile.padding import SMALL_BATCH
+from jaxarm.checks import certified
+from jaxarm.checks.evaluate import _evaluate_and_certify
+from jaxarm.paper import published
+from jaxarm.paper.published import a6_array
+from jaxarm.testing import dense_clearance, oracle_path_collides
 
 
 @pytest.mark.slow

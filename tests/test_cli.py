@@ -9,7 +9,6 @@ import tomli_w
 import jaxarm
 from jaxarm import choices, cli
 
-
 # The search sizes of every solve and study test here: with them (and restart counts in one
 # padded block) they run one compiled search program.
 SEARCH_SIZES = ("--particles", "6", "--iters", "10", "--samples", "51")
@@ -161,7 +160,7 @@ def test_cli_errors_are_one_line_without_traceback(capsys, monkeypatch, tmp_path
         raise AssertionError("the search started before the input was checked")
 
     for module, name in (("search", "solve"), ("study", "escape_study"),
-                         ("restarts", "run_restarts")):
+                         ("optim.restarts", "run_restarts")):
         monkeypatch.setattr(f"jaxarm.{module}.{name}", no_work)
     monkeypatch.chdir(tmp_path)
     code, _, err = run_cli(capsys, *argv)

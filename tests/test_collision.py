@@ -1,4 +1,4 @@
-"""The sampled check and the window bounds (``jaxarm.collision``) against shapely and dense
+"""The sampled check and the window bounds (``jaxarm.checks.collision``) against shapely and dense
 grids."""
 
 import jax
@@ -6,12 +6,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import shapely
+from random_worlds import random_world_problems
 
 import jaxarm
-from jaxarm import collision, path
-from jaxarm.oracle import link_segments
-
-from oracles import oracle_path_collides, random_world_problems, shapely_obstacles
+from jaxarm.checks import collision
+from jaxarm.model import path
+from jaxarm.testing import link_segments, oracle_path_collides, shapely_obstacles
 
 
 def test_sampled_check_agrees_with_shapely_on_the_same_samples(rng):

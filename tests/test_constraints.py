@@ -1,4 +1,4 @@
-"""Constraint-handling rules (``jaxarm.constraints``) and the ring topology."""
+"""Constraint-handling rules (``jaxarm.optim.constraints``) and the ring topology."""
 
 import jax
 import jax.numpy as jnp
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import jaxarm
-from jaxarm import constraints, pso
-from jaxarm.constraints import Measured
+from jaxarm.optim import constraints, pso
+from jaxarm.optim.constraints import Measured
 
 # five paths: two free, three colliding with violations 1, 2, 4
 OBJECTIVE = jnp.array([0.10, 0.20, 0.50, 0.40, 0.30])

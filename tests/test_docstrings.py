@@ -9,7 +9,7 @@ import pytest
 
 import jaxarm
 
-MODULES = ["jaxarm.stats", "jaxarm.constraints", "jaxarm.pso", "jaxarm.feasible",
+MODULES = ["jaxarm.stats", "jaxarm.optim.constraints", "jaxarm.optim.pso", "jaxarm.feasible",
            "jaxarm.trajectory"]
 
 

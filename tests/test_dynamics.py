@@ -1,4 +1,4 @@
-"""Rigid-body torques (``jaxarm.dynamics``) against an independent Lagrangian and statics."""
+"""Rigid-body torques (``jaxarm.model.dynamics``) against an independent Lagrangian and statics."""
 
 import functools
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import jaxarm
-from jaxarm import dynamics
+from jaxarm.model import dynamics
 
 LENGTHS = np.array([0.3, 0.3, 0.2])  # m: the paper's arm
 MASSES = np.array([3.0, 3.0, 2.0])  # kg: the paper's section 11

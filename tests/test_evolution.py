@@ -1,4 +1,4 @@
-"""evosax strategies as study methods (``jaxarm.evolution``)."""
+"""evosax strategies as study methods (``jaxarm.optim.evosax_adapter``)."""
 
 import sys
 
@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 import jaxarm
-from jaxarm import evolution, study
+from jaxarm import study
+from jaxarm.optim import evosax_adapter
 
 
 def test_a_missing_evosax_says_how_to_install_it(monkeypatch):
@@ -48,7 +49,7 @@ def test_a_restart_does_not_depend_on_the_restarts_beside_it(problem):
         np.testing.assert_array_equal(getattr(few.restarts, name),
                                       getattr(many.restarts, name)[:3])
     loaded = jaxarm.Result.from_json(few.to_json())
-    assert loaded.config == evolution.StrategyConfig("CMA_ES") and loaded.method == "evosax:CMA_ES"
+    assert loaded.config == evosax_adapter.StrategyConfig("CMA_ES") and loaded.method == "evosax:CMA_ES"
 
 
 def test_bad_strategies_and_rules_are_refused(problem):

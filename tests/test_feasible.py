@@ -5,7 +5,7 @@ import pytest
 
 import jaxarm
 from jaxarm import stats, study
-from oracles import oracle_path_collides
+from jaxarm.testing import oracle_path_collides
 
 
 def test_feasible_fraction_agrees_with_an_independent_monte_carlo_estimate():

@@ -1,12 +1,13 @@
-"""Joint limits (``jaxarm.joint_limits``): sampled and certified, against a dense evaluation."""
+"""Joint limits (``jaxarm.checks.joint_limits``): sampled and certified, against a dense evaluation."""
 
 import jax
 import numpy as np
 import pytest
 
 import jaxarm
-from jaxarm import joint_limits, path
-from oracles import oracle_path_collides
+from jaxarm.checks import joint_limits
+from jaxarm.model import path
+from jaxarm.testing import oracle_path_collides
 
 # The paper's case II: joint 1 moves from 5.78 to 5.43 rad, joint 2 from 1.15 to 2.02 rad.
 LIMITS = [(4.0, 6.5), (0.9, 2.6), (0.2, 1.0)]

@@ -36,7 +36,9 @@ def test_notebook_is_committed_executed_with_figures_and_no_warnings(path):
 @pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_notebook_executes_and_draws_the_figures_it_was_committed_with(path, tmp_path):
-    from nbclient import NotebookClient  # the notebooks extra (make test-all installs it)
+    from nbclient import (
+        NotebookClient,  # the notebooks extra (make test-all installs it)
+    )
 
     committed = nbformat.read(path, as_version=4)
     notebook = nbformat.read(path, as_version=4)

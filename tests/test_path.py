@@ -7,7 +7,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import jaxarm
-from jaxarm import path
+from jaxarm.model import path
 
 angles = st.floats(-7.0, 7.0, allow_nan=False)
 coefficient = st.floats(-300.0, 300.0, allow_nan=False)

@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
+from sizes import SMALL
 
 import jaxarm
 from jaxarm import plot, study
-from jaxarm.arm import joint_positions
-
-from sizes import SMALL
+from jaxarm.model.arm import joint_positions
 
 
 def test_plots_produce_non_empty_pngs(tmp_path, case2):

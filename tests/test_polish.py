@@ -9,8 +9,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import jaxarm
-from jaxarm import collision, path, polish, published
-from jaxarm.programs import jit  # compiles faster than jax.jit on CPU
+from jaxarm._compile.jit import jit  # compiles faster than jax.jit on CPU
+from jaxarm.checks import collision
+from jaxarm.model import path
+from jaxarm.optim import refine as refine_lib
+from jaxarm.paper import published
 
 
 @pytest.fixture(scope="module")
@@ -72,9 +75,9 @@ def test_refine_shares_programs_and_rows_do_not_depend_on_their_neighbours(
         feasible_case2_paths, case2):
     rows = np.asarray(feasible_case2_paths)
     few = jaxarm.refine(case2, rows[:3], n_steps=20)
-    before = polish._compiled_refine._cache_size()
+    before = refine_lib._compiled_refine._cache_size()
     many = jaxarm.refine(case2, np.concatenate([rows[:3], rows[:3], rows[:3] + 1.0]), n_steps=20)
-    assert polish._compiled_refine._cache_size() == before  # 3 and 9 rows: the same program
+    assert refine_lib._compiled_refine._cache_size() == before  # 3 and 9 rows: the same program
     np.testing.assert_array_equal(many.x[:3], few.x)
     np.testing.assert_array_equal(many.fitness[3:6], few.fitness)
     wide = jaxarm.refine(case2, rows[:40], n_steps=20)  # 64 rows
@@ -120,7 +123,7 @@ def test_the_surrogate_matches_a_fold_over_the_samples_and_its_gradient_autodiff
     weight, margin, temperature = 2.0, 1.0, 0.5  # none of them refine's defaults
 
     def at_once(z):
-        return polish.surrogate(problem.spec, problem.arrays, z, weight, margin, temperature)
+        return refine_lib.surrogate(problem.spec, problem.arrays, z, weight, margin, temperature)
 
     def folded(z):
         return _surrogate_one_sample_at_a_time(problem, z, weight, margin, temperature)
@@ -128,7 +131,7 @@ def test_the_surrogate_matches_a_fold_over_the_samples_and_its_gradient_autodiff
     np.testing.assert_allclose(jit(at_once)(x), jit(folded)(x), rtol=2e-5)
     # the chain rule written out against autodiff of the same value (checked above)
     autodiff = jit(jax.vmap(jax.grad(at_once)))(x)
-    written_out = jit(lambda z: polish.surrogate_gradient(
+    written_out = jit(lambda z: refine_lib.surrogate_gradient(
         problem.spec, problem.arrays, z, weight, margin, temperature))(x)
     np.testing.assert_allclose(written_out, autodiff, rtol=1e-4,
                                atol=1e-4 * float(np.abs(autodiff).max()))

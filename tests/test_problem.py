@@ -8,9 +8,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import jaxarm
-import jaxarm.problem  # the module itself, for evaluate and vmapped_evaluate
-from jaxarm import published
-from jaxarm.restarts import is_compiled
+import jaxarm.model.problem  # the module itself, for evaluate and vmapped_evaluate
+from jaxarm.optim.restarts import is_compiled
+from jaxarm.paper import published
 
 CASE_2_FEASIBLE = [s for s in published.CASE_2 if s.feasible]
 
@@ -45,10 +45,10 @@ def test_fitness_is_inverse_distance_when_free_and_zero_when_colliding(case2, rn
     x = rng.uniform(-200, 200, (2000, 3))
     fitness = np.asarray(jaxarm.fitness(case2, x))
     distance = np.asarray(jaxarm.travelling_distance(case2, x))
-    np.testing.assert_array_equal(distance, jaxarm.problem._evaluated(case2, x).distance)
-    programs = jaxarm.problem._evaluate_and_certify._cache_size()
+    np.testing.assert_array_equal(distance, jaxarm.checks.evaluate._evaluated(case2, x).distance)
+    programs = jaxarm.checks.evaluate._evaluate_and_certify._cache_size()
     jaxarm.travelling_distance(case2.replace(n_samples=41), x)  # runs no collision check
-    assert jaxarm.problem._evaluate_and_certify._cache_size() == programs
+    assert jaxarm.checks.evaluate._evaluate_and_certify._cache_size() == programs
     violation = np.asarray(jaxarm.violation(case2, x))
     free = violation == 0
     assert 0 < free.sum() < len(x)
@@ -68,7 +68,8 @@ def test_batched_equals_looped_for_any_leading_shape(case2, rng):
 
 
 def test_batches_are_padded_to_a_few_sizes_and_rows_do_not_depend_on_them(case2, rng):
-    from jaxarm.problem import LARGE_BLOCK, SMALL_BATCH, _evaluate_and_certify, padded_size
+    from jaxarm._compile.padding import LARGE_BLOCK, SMALL_BATCH, padded_size
+    from jaxarm.checks.evaluate import _evaluate_and_certify
 
     assert [padded_size(n) for n in (0, 1, 64, 65, 4096, 4097)] == [64, 64, 64, 128, 4096, 8192]
     assert padded_size(3, smallest=16) == 16 and padded_size(3 * LARGE_BLOCK + 1) == 4 * 4096
@@ -91,8 +92,8 @@ def test_jit_equals_no_jit(case2, rng, mode):
     x = jnp.asarray(rng.uniform(-200, 200, (64, 3)), dtype=jnp.float32)
     spec, arrays = problem.spec, problem.arrays
     with jax.disable_jit():
-        eager = jaxarm.problem.evaluate(spec, arrays, x)
-    jitted = jax.jit(jaxarm.problem.evaluate, static_argnums=0)(spec, arrays, x)
+        eager = jaxarm.checks.evaluate.evaluate(spec, arrays, x)
+    jitted = jax.jit(jaxarm.checks.evaluate.evaluate, static_argnums=0)(spec, arrays, x)
     for a, b in zip(eager, jitted):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
 
@@ -100,9 +101,9 @@ def test_jit_equals_no_jit(case2, rng, mode):
 @given(st.lists(st.floats(-200, 200), min_size=3, max_size=3))
 def test_float32_agrees_with_float64(x):
     problem = jaxarm.load_scenario("paper-case-2")
-    low = np.asarray(jaxarm.problem._evaluated(problem, jnp.asarray(x, jnp.float32)))
+    low = np.asarray(jaxarm.checks.evaluate._evaluated(problem, jnp.asarray(x, jnp.float32)))
     with jax.enable_x64(True):
-        high = np.asarray(jaxarm.problem._evaluated(problem, jnp.asarray(x, jnp.float64)))
+        high = np.asarray(jaxarm.checks.evaluate._evaluated(problem, jnp.asarray(x, jnp.float64)))
     np.testing.assert_allclose(low[2], high[2], rtol=1e-5)  # distance
     # Collision verdicts can only differ within rounding of the boundary.
     if (low[1] > 0) != (high[1] > 0):
@@ -114,9 +115,9 @@ def test_new_obstacle_data_does_not_recompile(case2):
     assert moved.spec == case2.spec
     x = jnp.zeros((4, 3))
     jaxarm.fitness(case2, x)
-    before = jaxarm.problem._evaluate_and_certify._cache_size()
+    before = jaxarm.checks.evaluate._evaluate_and_certify._cache_size()
     jaxarm.fitness(moved, x)
-    assert jaxarm.problem._evaluate_and_certify._cache_size() == before
+    assert jaxarm.checks.evaluate._evaluate_and_certify._cache_size() == before
 
 
 ARM = jaxarm.Arm((30.0, 30.0, 20.0))
@@ -202,8 +203,8 @@ def test_joint_path_checks_the_order_and_the_times(case2):
 def test_vmapped_evaluate_folds_the_mapped_axis_and_agrees(case2, rng):
     x = jnp.asarray(rng.uniform(-200, 200, (6, 5, 3)), jnp.float32)
     spec, arrays = case2.spec, case2.arrays
-    direct = jaxarm.problem.evaluate(spec, arrays, x)
-    evaluate_spec = jaxarm.problem.vmapped_evaluate(spec)
+    direct = jaxarm.checks.evaluate.evaluate(spec, arrays, x)
+    evaluate_spec = jaxarm.checks.evaluate.vmapped_evaluate(spec)
     mapped = jax.jit(jax.vmap(evaluate_spec, in_axes=(None, 0)))(arrays, x)
     for a, b in zip(direct, mapped):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
@@ -215,7 +216,7 @@ def test_vmapped_evaluate_folds_the_mapped_axis_and_agrees(case2, rng):
                                   np.asarray(direct.fitness[0]))
     np.testing.assert_array_equal(
         np.asarray(per_problem.fitness[1]),
-        np.asarray(jaxarm.problem.evaluate(spec, smaller.arrays, x[1]).fitness))
+        np.asarray(jaxarm.checks.evaluate.evaluate(spec, smaller.arrays, x[1]).fitness))
 
 
 @pytest.mark.parametrize("mode", ["sampled", "certified"])
@@ -228,7 +229,7 @@ def test_overflowing_paths_are_never_feasible(case2, mode):
                  np.float32)
     # compiled, padded with 60 zero paths: the 64-row program the public functions run
     rows = np.concatenate([x, np.zeros((60, 3), np.float32)])
-    evaluation, _ = jaxarm.problem._evaluate_and_certify(problem.spec, problem.arrays, rows)
+    evaluation, _ = jaxarm.checks.evaluate._evaluate_and_certify(problem.spec, problem.arrays, rows)
     assert np.all(np.asarray(evaluation.fitness[:4]) == 0)
     assert not np.any(np.asarray(evaluation.violation[:4]) == 0)
 
@@ -269,7 +270,7 @@ def test_share_capacities_gives_each_arm_its_largest_slots_and_one_search_progra
 def test_problems_of_one_arm_share_the_posture_check_program():
     """Constructing a problem checks its start and goal in a compiled program; arms of as many
     joints and worlds of up to 4 circles and 4 polygons share it (lengths are data)."""
-    from jaxarm import problem as problem_lib
+    from jaxarm.model import problem as problem_lib
 
     before = problem_lib._posture_depth._cache_size()
     for n_circles, lengths in ((1, (21.0, 22.0, 23.0)), (2, (31.0, 12.0, 13.0)), (3, ARM.lengths)):

@@ -1,10 +1,10 @@
-"""``jaxarm.programs.jit``: CPU compiler options at the top level, a plain jit inside a trace."""
+"""``jaxarm._compile.jit.jit``: CPU compiler options at the top level, a plain jit inside a trace."""
 
 import jax
 import numpy as np
 
 import jaxarm
-from jaxarm import programs
+from jaxarm._compile import jit as jit_lib
 
 
 def test_programs_run_alone_and_inside_a_callers_jit_and_vmap_alike(case2):
@@ -19,7 +19,7 @@ def test_programs_run_alone_and_inside_a_callers_jit_and_vmap_alike(case2):
 
 
 def test_top_level_programs_carry_the_cpu_options_and_forward_jit_attributes():
-    square = programs.jit(lambda v: v * v)
+    square = jit_lib.jit(lambda v: v * v)
     assert float(square(3.0)) == 9.0 and square._cache_size() == 1  # jax.jit's own attribute
     options = dict(square.lower(2.0)._lowering._compiler_options_kvs or ())
     nested = dict(square._nested.lower(2.0)._lowering._compiler_options_kvs or ())

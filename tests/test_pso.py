@@ -1,4 +1,4 @@
-"""The PSO engine (``jaxarm.pso``): velocity rules, presets, bests, ties, NaN."""
+"""The PSO engine (``jaxarm.optim.pso``): velocity rules, presets, bests, ties, NaN."""
 
 import re
 
@@ -7,9 +7,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxarm import choices, constraints, pso
-from jaxarm.constraints import Measured
-
+from jaxarm import choices
+from jaxarm.optim import constraints, pso
+from jaxarm.optim.constraints import Measured
 
 LOW, HIGH = jnp.full(2, -1.0), jnp.full(2, 1.0)
 # One swarm size wherever the size does not matter: these swarms run op by op, and each new

@@ -1,4 +1,4 @@
-"""The shipped paper scenarios against the paper's published numbers, and jaxarm.reconstruct.
+"""The shipped paper scenarios against the paper's published numbers, and jaxarm.paper.reconstruct.
 
 These pin the reconstruction: a scenario edit that breaks a published verdict fails here.
 """
@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import jaxarm
-from jaxarm import published, reconstruct
-from jaxarm.oracle import dense_clearance, link_segments
-from jaxarm.published import a6_array
+from jaxarm.paper import published, reconstruct
+from jaxarm.paper.published import a6_array
+from jaxarm.testing import dense_clearance, link_segments
 
 
 def test_case_1_postures_reproduce_table_2_to_4_significant_figures(case1):

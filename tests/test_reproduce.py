@@ -1,4 +1,4 @@
-"""``reproduce-paper`` (``jaxarm.reproduce``): every table of the report."""
+"""``reproduce-paper`` (``jaxarm.paper.report``): every table of the report."""
 
 import _thread
 import contextlib
@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 import jaxarm
-from jaxarm import cli, published, reproduce
+from jaxarm import cli
+from jaxarm.paper import published, report
 
 
 def run_cli(capsys, *argv):
@@ -48,7 +49,7 @@ def test_cli_reproduce_paper_writes_a_report_with_every_table(capsys, tmp_path):
 
 def test_stage_lines_are_numbered_and_timed():
     lines = []
-    stage = reproduce._stages(lines.append, time.perf_counter() - 61.4, total=2)
+    stage = report._stages(lines.append, time.perf_counter() - 61.4, total=2)
     stage("first")
     stage("second")
     assert re.fullmatch(r"\[1/2, 6\d s\] first", lines[0])
@@ -58,15 +59,15 @@ def test_stage_lines_are_numbered_and_timed():
 
 
 def test_the_rules_section_adds_evosax_rows_only_where_it_is_installed(monkeypatch):
-    from jaxarm import evolution
+    from jaxarm.optim import evosax_adapter
 
-    monkeypatch.setattr(evolution, "available", lambda: False)
-    methods, note = reproduce.rule_methods()
-    assert methods == reproduce.RULES and "pip install 'jaxarm[bench]'" in note
-    monkeypatch.setattr(evolution, "available", lambda: True)
-    methods, note = reproduce.rule_methods()
-    assert methods == reproduce.RULES + reproduce.EVOSAX_RULES and "CMA-ES" in note
-    assert all(evolution.is_strategy(m) for m in reproduce.EVOSAX_RULES)
+    monkeypatch.setattr(evosax_adapter, "available", lambda: False)
+    methods, note = report.rule_methods()
+    assert methods == report.RULES and "pip install 'jaxarm[bench]'" in note
+    monkeypatch.setattr(evosax_adapter, "available", lambda: True)
+    methods, note = report.rule_methods()
+    assert methods == report.RULES + report.EVOSAX_RULES and "CMA-ES" in note
+    assert all(evosax_adapter.is_strategy(m) for m in report.EVOSAX_RULES)
 
 
 def test_certified_escapes_counts_only_the_restarts_that_ended_free_per_outcome():
@@ -83,7 +84,7 @@ def test_certified_escapes_counts_only_the_restarts_that_ended_free_per_outcome(
     outcomes = [outcome(np.concatenate([blocked, table_2]), [True] * 18),
                 outcome(blocked, [False]),
                 outcome(np.concatenate([blocked, table_2[:1]]), [False, True])]
-    assert reproduce._certified_escapes(case1, outcomes) == [(17, 18), (0, 0), (1, 1)]
+    assert report._certified_escapes(case1, outcomes) == [(17, 18), (0, 0), (1, 1)]
 
 
 def _section(title, text, long=False, wait=None):
@@ -91,14 +92,14 @@ def _section(title, text, long=False, wait=None):
         if wait is not None:
             assert wait.wait(10)
         part.add(text)
-    return reproduce._Section(title, fill, long)
+    return report._Section(title, fill, long)
 
 
 @pytest.mark.parametrize("workers", [1, 2, 3])
 def test_sections_come_back_in_their_order_and_long_ones_start_first(tmp_path, workers):
     lines = []
     sections = [_section("a", "first"), _section("b", "second", long=True), _section("c", "third")]
-    parts = reproduce._run_sections(sections, tmp_path, workers, lines.append, time.perf_counter())
+    parts = report._run_sections(sections, tmp_path, workers, lines.append, time.perf_counter())
     assert [part.lines for part in parts] == [["first"], ["second"], ["third"]]
     started = [line.split("] ")[1] for line in lines if re.match(r"\[\d/3, ", line)]
     assert started[0] == ("a" if workers == 1 else "b") and sorted(started) == ["a", "b", "c"]
@@ -112,10 +113,10 @@ def test_a_failing_section_raises_without_waiting_for_the_others(tmp_path):
     def broken(part):
         raise ValueError("suite must be a non-empty list")
 
-    sections = [_section("slow", "x", wait=release), reproduce._Section("broken", broken)]
+    sections = [_section("slow", "x", wait=release), report._Section("broken", broken)]
     try:
         with pytest.raises(ValueError, match="non-empty list"):
-            reproduce._run_sections(sections, tmp_path, 2, lambda text: None, 0.0)
+            report._run_sections(sections, tmp_path, 2, lambda text: None, 0.0)
     finally:
         release.set()
 
@@ -142,19 +143,19 @@ def test_ctrl_c_while_sections_run_starts_no_other_section(tmp_path):
         _thread.interrupt_main()  # raised in the main thread, inside _run_sections' wait
         assert release.wait(10)
 
-    sections = [reproduce._Section("interrupting", interrupting, long=True),
+    sections = [report._Section("interrupting", interrupting, long=True),
                 _section("slow", "x", long=True, wait=release),
-                *(reproduce._Section(name, lambda part, name=name: ran.append(name))
+                *(report._Section(name, lambda part, name=name: ran.append(name))
                   for name in ("c", "d"))]
     try:
         with collection_paused(), pytest.raises(KeyboardInterrupt):
-            reproduce._run_sections(sections, tmp_path, 2, lambda text: None, 0.0)
+            report._run_sections(sections, tmp_path, 2, lambda text: None, 0.0)
     finally:
         release.set()
     deadline = time.monotonic() + 10
-    while reproduce.sections_running() and time.monotonic() < deadline:
+    while report.sections_running() and time.monotonic() < deadline:
         time.sleep(0.01)
-    assert not reproduce.sections_running() and ran == []
+    assert not report.sections_running() and ran == []
 
 
 def test_a_section_still_running_after_ctrl_c_is_seen_running(tmp_path):
@@ -168,43 +169,44 @@ def test_a_section_still_running_after_ctrl_c_is_seen_running(tmp_path):
         _thread.interrupt_main()
         assert release.wait(10)
 
-    sections = [reproduce._Section("interrupting", interrupting, long=True),
+    sections = [report._Section("interrupting", interrupting, long=True),
                 _section("quick", "x")]
     try:
         with collection_paused(), pytest.raises(KeyboardInterrupt):
-            reproduce._run_sections(sections, tmp_path, 2, lambda text: None, 0.0)
-        assert reproduce.sections_running()
+            report._run_sections(sections, tmp_path, 2, lambda text: None, 0.0)
+        assert report.sections_running()
     finally:
         release.set()
     deadline = time.monotonic() + 10
-    while reproduce.sections_running() and time.monotonic() < deadline:
+    while report.sections_running() and time.monotonic() < deadline:
         time.sleep(0.01)
-    assert not reproduce.sections_running()
+    assert not report.sections_running()
 
 
 def test_workers_default_to_the_cores_and_must_be_1_across_processes(monkeypatch):
-    assert 1 <= reproduce._section_workers(None) <= 5
-    assert reproduce._section_workers(3) == 3
+    assert 1 <= report._section_workers(None) <= 5
+    assert report._section_workers(3) == 3
     with pytest.raises(ValueError, match="workers must be"):
-        reproduce._section_workers(0)
+        report._section_workers(0)
     monkeypatch.setattr(jax, "process_count", lambda: 2)
-    assert reproduce._section_workers(None) == 1
+    assert report._section_workers(None) == 1
     with pytest.raises(ValueError, match="workers must be 1 with 2 processes"):
-        reproduce._section_workers(2)
+        report._section_workers(2)
 
 
 STOPPED_MIDWAY = """
 import sys, threading, time
 import jax, jax.numpy as jnp
-from jaxarm import cli, reproduce
+from jaxarm import cli
+from jaxarm.paper import report
 
 def inside_xla(part):  # a section still inside an XLA program
     x = jnp.ones((300, 300))
     steps = jax.jit(lambda x: jax.lax.fori_loop(0, 10**6, lambda i, a: jnp.tanh(a @ x), x))
     steps(x).block_until_ready()
 
-sections = [reproduce._Section(name, inside_xla) for name in "ab"]
-threading.Thread(target=reproduce._run_sections, args=(sections, None, 2, print, 0.0),
+sections = [report._Section(name, inside_xla) for name in "ab"]
+threading.Thread(target=report._run_sections, args=(sections, None, 2, print, 0.0),
                  daemon=True).start()
 time.sleep(1.0)
 sys.exit(cli._leave(130))

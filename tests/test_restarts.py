@@ -1,17 +1,16 @@
-"""The restart engine (``jaxarm.restarts``): determinism, independence of the batch, jit, compiles,
+"""The restart engine (``jaxarm.optim.restarts``): determinism, independence of the batch, jit, compiles,
 sharding."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from sizes import SMALL
 
 import jaxarm
-from jaxarm import constraints, pso, restarts
-from jaxarm.constraints import Measured
-from jaxarm.restarts import compiled_search
-
-from sizes import SMALL
+from jaxarm.optim import constraints, pso, restarts
+from jaxarm.optim.constraints import Measured
+from jaxarm.optim.restarts import compiled_search
 
 
 def test_same_seed_gives_bit_identical_results(case2):

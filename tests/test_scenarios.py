@@ -1,10 +1,11 @@
-"""Scenario files and the loader (``jaxarm.scenarios``)."""
+"""Scenario files and the loader (``jaxarm.io.scenario_files``)."""
 
 import numpy as np
 import pytest
 
 import jaxarm
-from jaxarm.oracle import dense_clearance
+from jaxarm.io import scenario_files
+from jaxarm.testing import dense_clearance
 
 ARM = jaxarm.Arm((30.0, 30.0, 20.0))
 
@@ -135,6 +136,6 @@ def test_every_problem_written_as_a_scenario_loads_back_equal(tmp_path):
     for problem in problems:
         path = jaxarm.save_scenario(problem, tmp_path / f"{problem.name}.toml")
         assert jaxarm.load_scenario(path) == problem, problem.name
-        assert path.read_text() == problem.to_toml()
+        assert path.read_text() == scenario_files.to_toml(problem)
     with pytest.raises(ValueError, match=r"path must end in .toml, got '.*x.txt'"):
         jaxarm.save_scenario(problems[0], tmp_path / "x.txt")

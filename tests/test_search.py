@@ -5,13 +5,13 @@ import json
 
 import numpy as np
 import pytest
+from sizes import SMALL
 
 import jaxarm
-from jaxarm import pso, published
+from jaxarm.optim import pso
+from jaxarm.paper import published
 from jaxarm.study import wilson_interval
-
-from oracles import oracle_separation
-from sizes import SMALL
+from jaxarm.testing import oracle_separation
 
 
 def test_init_particles_seed_the_swarm(case2):

@@ -4,11 +4,10 @@ import json
 
 import numpy as np
 import pytest
+from sizes import SMALL
 
 import jaxarm
 from jaxarm import stats, study
-
-from sizes import SMALL
 
 
 def test_study_is_reproducible_and_chunking_does_not_matter(case2):

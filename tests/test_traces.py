@@ -1,4 +1,4 @@
-"""Traced programs kept on disk (``jaxarm.traces``): reused by a new process, same bits, keyed
+"""Traced programs kept on disk (``jaxarm._compile.stored_programs``): reused by a new process, same bits, keyed
 on everything the trace depends on, and plain ``jax.jit`` whenever a call cannot be keyed."""
 
 import concurrent.futures
@@ -15,18 +15,21 @@ import optax
 import pytest
 
 import jaxarm
-from jaxarm import polish, problem as problem_lib, traces
-from jaxarm.programs import jit
+from jaxarm._compile import stored_programs
+from jaxarm._compile.jit import jit
+from jaxarm.checks import evaluate as evaluate_lib
+from jaxarm.optim import refine as refine_lib
 
 # The CLI in a new process, counting the programs it traces for storing; then the clearances
 # of its restarts' paths (certify's floats: the JSON has only the best path's verdict).
 CLI = """
 import json, sys
 import jaxarm
-from jaxarm import cli, traces
+from jaxarm import cli
+from jaxarm._compile import stored_programs
 exports = []
-export = traces._export
-traces._export = lambda *a: exports.append(1) or export(*a)
+export = stored_programs._export
+stored_programs._export = lambda *a: exports.append(1) or export(*a)
 assert cli.main(sys.argv[1:]) == 0
 x = json.loads(open(sys.argv[-1]).read())["result"]["restarts"]["best_x"]
 clearance = jaxarm.certify(jaxarm.load_scenario("paper-case-2"), x).clearance.tolist()
@@ -65,7 +68,7 @@ def test_the_cli_keeps_programs_a_new_process_runs_with_the_bits_of_plain_jit(tm
     stored = sorted(p.name for p in (folder / "traces").iterdir())
     # another entry point (more of jaxarm imported) finds the same programs
     second_exports, second = _solve(folder, tmp_path / "second.json",
-                                    first_line="import jaxarm.reproduce, jaxarm.plot")
+                                    first_line="import jaxarm.paper.report, jaxarm.plot")
     assert plain_exports == 0 and first_exports >= 3  # search, refine, certify at least
     assert second_exports == 0  # nothing traced: every program came from the folder
     assert sorted(p.name for p in (folder / "traces").iterdir()) == stored
@@ -76,7 +79,7 @@ def test_the_cli_keeps_programs_a_new_process_runs_with_the_bits_of_plain_jit(tm
 
 def _evaluate_call(problem, x):
     static_names = frozenset({"spec"})
-    return traces.split_call(problem_lib.evaluate, static_names, (problem.spec, problem.arrays,
+    return stored_programs.split_call(evaluate_lib.evaluate, static_names, (problem.spec, problem.arrays,
                                                                   x), {})
 
 
@@ -84,7 +87,7 @@ def test_keys_change_with_statics_and_shapes(case2):
     x = np.zeros((4, case2.n_free), np.float32)
 
     def key(problem=case2, rows=x):
-        return traces._disk_key("evaluate", _evaluate_call(problem, rows), None)
+        return stored_programs._disk_key("evaluate", _evaluate_call(problem, rows), None)
 
     same = key()
     assert key() == same
@@ -96,43 +99,43 @@ def test_keys_change_with_statics_and_shapes(case2):
 
 
 def test_calls_that_cannot_be_keyed_run_as_plain_jit(case2, monkeypatch, tmp_path):
-    monkeypatch.setattr(traces, "_directory", tmp_path)
-    assert traces.directory() == tmp_path and traces.usable()
+    monkeypatch.setattr(stored_programs, "_directory", tmp_path)
+    assert stored_programs.directory() == tmp_path and stored_programs.usable()
     x = np.array([[66.7388, -28.1028, -9.8855]], np.float32)
     sgd = optax.sgd(0.01)
-    assert traces.split_call(polish._refine_rows, frozenset({"optimizer"}),
+    assert stored_programs.split_call(refine_lib._refine_rows, frozenset({"optimizer"}),
                              (None, None, x, sgd, 3, 1.0, 0.5, 0.25), {}) is None
-    assert traces.split_call(problem_lib.evaluate, frozenset({"spec"}),
+    assert stored_programs.split_call(evaluate_lib.evaluate, frozenset({"spec"}),
                              (case2.spec, case2.arrays, "not an array"), {}) is None
     custom = jaxarm.refine(case2, x, n_steps=5, optimizer=sgd)
     assert not list(tmp_path.iterdir())  # nothing stored for a custom optimizer
     assert custom.fitness[0] >= custom.initial_fitness[0] > 0.1
     # a storable program of its own (jaxarm's are already in this process's memory)
-    evaluate = jit(problem_lib.evaluate, static_argnums=0, storable=True)
+    evaluate = jit(evaluate_lib.evaluate, static_argnums=0, storable=True)
     shared = evaluate._cache_size()  # jax.jit's cache is shared with equal jits made elsewhere
     evaluate(case2.spec, case2.arrays, x)
     assert len(list(tmp_path.iterdir())) == 1
-    traces.keep_in(None)  # the off switch (monkeypatch puts the run's folder back after)
-    assert traces.directory() is None and not traces.usable()
+    stored_programs.keep_in(None)  # the off switch (monkeypatch puts the run's folder back after)
+    assert stored_programs.directory() is None and not stored_programs.usable()
     evaluate(case2.spec, case2.arrays, np.repeat(x, 2, axis=0))  # traced by jax.jit only
     assert len(list(tmp_path.iterdir())) == 1 and evaluate._cache_size() == shared + 2
 
 
 def test_a_damaged_stored_trace_is_traced_again_and_replaced(case2, monkeypatch, tmp_path):
-    monkeypatch.setattr(traces, "_directory", tmp_path)
+    monkeypatch.setattr(stored_programs, "_directory", tmp_path)
     x = np.array([[66.7388, -28.1028, -9.8855], [0.0, 0.0, 0.0]], np.float32)
     call = _evaluate_call(case2, x)
 
     def run():  # XLA's default options on both sides
-        stored = traces.stored_program(problem_lib.evaluate, "evaluate", call, None)
+        stored = stored_programs.stored_program(evaluate_lib.evaluate, "evaluate", call, None)
         return jax.tree.unflatten(stored.out_tree, stored.call(*call.leaves))
 
-    expected = jax.jit(problem_lib.evaluate, static_argnums=0)(case2.spec, case2.arrays, x)
+    expected = jax.jit(evaluate_lib.evaluate, static_argnums=0)(case2.spec, case2.arrays, x)
     first = run()
     (path,) = tmp_path.iterdir()
     path.write_bytes(b"not a stored program")
     again = run()
-    assert traces._load(path) is not None  # replaced by a good one
+    assert stored_programs._load(path) is not None  # replaced by a good one
     for a, b, c in zip(expected, first, again):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
         np.testing.assert_array_equal(np.asarray(a), np.asarray(c))
@@ -144,7 +147,7 @@ def _doubled_on_the_host(v):
 
 
 def test_a_program_export_refuses_runs_as_plain_jit_with_a_warning(monkeypatch, tmp_path):
-    monkeypatch.setattr(traces, "_directory", tmp_path)
+    monkeypatch.setattr(stored_programs, "_directory", tmp_path)
     program = jit(_doubled_on_the_host, storable=True)  # a host callback: export refuses it
     v = np.arange(3.0, dtype=np.float32)
     with pytest.warns(RuntimeWarning, match="_doubled_on_the_host is traced in every process"):
@@ -156,16 +159,16 @@ def test_a_program_export_refuses_runs_as_plain_jit_with_a_warning(monkeypatch, 
 def test_threads_asking_for_one_program_together_trace_and_compile_it_once(
         case2, monkeypatch, tmp_path):
     """The report runs its sections on threads; two that need the same program make it once."""
-    monkeypatch.setattr(traces, "_directory", tmp_path)
-    exports, export = [], traces._export
+    monkeypatch.setattr(stored_programs, "_directory", tmp_path)
+    exports, export = [], stored_programs._export
 
     def slow_export(*args):  # the second thread arrives while the first is still tracing
         exports.append(1)
         time.sleep(0.3)
         return export(*args)
 
-    monkeypatch.setattr(traces, "_export", slow_export)
-    evaluate = jit(problem_lib.evaluate, static_argnums=0, storable=True)
+    monkeypatch.setattr(stored_programs, "_export", slow_export)
+    evaluate = jit(evaluate_lib.evaluate, static_argnums=0, storable=True)
     x = np.array([[66.7388, -28.1028, -9.8855]], np.float32)
     results = [None, None]
     before = evaluate._cache_size()  # jax.jit shares its cache with other tests' programs

@@ -1,15 +1,15 @@
-"""Obstacles and segment-obstacle separation (``jaxarm.world``) against shapely."""
+"""Obstacles and segment-obstacle separation (``jaxarm.model.world``) against shapely."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from random_worlds import CAPACITIES, random_world
 
 import jaxarm
-from jaxarm import world as world_lib
-from jaxarm.programs import jit  # compiles faster than jax.jit on CPU
-
-from oracles import CAPACITIES, oracle_separation, random_world
+from jaxarm._compile.jit import jit  # compiles faster than jax.jit on CPU
+from jaxarm.model import world as world_lib
+from jaxarm.testing import oracle_separation
 
 
 @pytest.mark.parametrize(

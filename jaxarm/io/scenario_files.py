@@ -1,4 +1,6 @@
-"""Scenario files (TOML) shipped with jaxarm, and the loader that turns one into a ``Problem``.
+"""Scenario files (TOML): the loader that turns one into a ``Problem``, and the writer back.
+
+The shipped scenarios are ``jaxarm/scenarios/*.toml``.
 
 Schema (units: cm and rad)::
 
@@ -29,7 +31,7 @@ Schema (units: cm and rad)::
     type = "box"                       # min = [xmin, ymin], max = [xmax, ymax]
     type = "polygon"                   # vertices = [[x, y], ...], convex, either order
 
-``save_scenario`` (or ``Problem.to_toml``) writes a ``Problem`` in this schema; loading the file
+``save_scenario`` (or ``to_toml``) writes a ``Problem`` in this schema; loading the file
 gives back an equal ``Problem``.
 """
 
@@ -43,10 +45,10 @@ import numpy as np
 import tomli_w
 
 from jaxarm._validate import finite_scalar, finite_vector
-from jaxarm.arm import Arm, inverse_kinematics
-from jaxarm.problem import Problem
-from jaxarm import world as world_lib
-from jaxarm.world import World
+from jaxarm.model import world as world_lib
+from jaxarm.model.arm import Arm, inverse_kinematics
+from jaxarm.model.problem import Problem
+from jaxarm.model.world import World
 
 
 class ScenarioError(ValueError):
@@ -54,6 +56,7 @@ class ScenarioError(ValueError):
 
 
 UNITS = "cm, rad"
+SHIPPED = importlib.resources.files("jaxarm") / "scenarios"  # the shipped scenario files
 _TOP_KEYS = {"name", "description", "units", "arm", "start", "goal", "search", "obstacles"}
 # [search] key -> Problem field; a key left out keeps the Problem's default
 _SEARCH_FIELDS = {"degree": "degree", "samples": "n_samples", "collision": "collision",
@@ -71,7 +74,7 @@ _OBSTACLE_KEYS = {
 def available() -> dict[str, str]:
     """Shipped scenario names with their one-line descriptions, sorted by name."""
     out = {}
-    for entry in sorted(importlib.resources.files(__name__).iterdir(), key=lambda e: e.name):
+    for entry in sorted(SHIPPED.iterdir(), key=lambda e: e.name):
         if entry.name.endswith(".toml"):
             data = tomllib.loads(entry.read_text())
             out[entry.name[: -len(".toml")]] = data.get("description", "")
@@ -111,7 +114,7 @@ def _read(name_or_path) -> tuple[str, str]:
             return candidate.read_text(), str(candidate)
         except OSError as error:
             raise ScenarioError(f"cannot read scenario file {str(candidate)!r}: {error.strerror}")
-    resource = importlib.resources.files(__name__) / f"{name_or_path}.toml"
+    resource = SHIPPED / f"{name_or_path}.toml"
     if not resource.is_file():
         names = ", ".join(available())
         raise ScenarioError(f"unknown scenario {str(name_or_path)!r}; shipped scenarios: {names}")

@@ -1,7 +1,7 @@
 """Recovering the paper's scenarios from its published numbers.
 
 The paper's figures of the case-1 postures and of every obstacle did not survive, but its
-tables did (``jaxarm.published``). Two facts make them usable:
+tables did (``jaxarm.paper.published``). Two facts make them usable:
 
 - Fitness (1 / travelling distance) depends only on the joint displacement ``goal - start``
   and on a6, never on the obstacles; so the 17 published case-1 fitness values pin the start and
@@ -26,11 +26,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm import path
-from jaxarm.arm import Arm, inverse_kinematics, joint_positions
-from jaxarm.problem import Problem, fitness, joint_path
-from jaxarm.programs import jit
-from jaxarm.published import PublishedSet, a6_array
+from jaxarm._compile.jit import jit
+from jaxarm.checks.evaluate import fitness
+from jaxarm.model import path
+from jaxarm.model.arm import Arm, inverse_kinematics, joint_positions
+from jaxarm.model.path_functions import joint_path
+from jaxarm.model.problem import Problem
+from jaxarm.paper.published import PublishedSet, a6_array
 
 
 class PostureFit(NamedTuple):

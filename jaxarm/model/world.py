@@ -23,8 +23,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm._compile.jit import rank_promotion_allowed
 from jaxarm._validate import finite_vector
-from jaxarm.programs import rank_promotion_allowed
 
 _TINY = 1e-30
 

@@ -20,10 +20,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm import constraints, evolution, pso
-from jaxarm.constraints import constraint_index
-from jaxarm.problem import Problem, ProblemArrays, ProblemSpec, vmapped_evaluate
-from jaxarm.programs import jit
+from jaxarm._compile.jit import jit
+from jaxarm.checks.evaluate import vmapped_evaluate
+from jaxarm.model.problem import Problem, ProblemArrays, ProblemSpec
+from jaxarm.optim import constraints, evosax_adapter, pso
+from jaxarm.optim.constraints import constraint_index
 
 N_PARTICLES = 20  # the swarm size solve and escape_study use unless told
 N_ITERS = 100  # their iterations per restart
@@ -114,7 +115,7 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
     Args:
       spec: static problem part; arrays: its data.
       params, rules: ``PSOConfig.params()`` and ``.rules()``, or an evosax
-        ``evolution.StrategyConfig``'s (``rules`` is then the config itself).
+        ``evosax_adapter.StrategyConfig``'s (``rules`` is then the config itself).
       low, high: init range, shape (n_free,).
       seed: int32 scalar.
       restart_ids: int32, shape (n_restarts,); restart i uses ``fold_in(key(seed), i)``.
@@ -134,8 +135,8 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
         return constraints.path_measures(evaluation.fitness, evaluation.violation,
                                          evaluation.distance)
 
-    if isinstance(rules, evolution.StrategyConfig):  # "evosax:<Strategy>"
-        swarm = evolution.strategy_swarm(rules, measure, low, high, n_particles=n_particles,
+    if isinstance(rules, evosax_adapter.StrategyConfig):  # "evosax:<Strategy>"
+        swarm = evosax_adapter.strategy_swarm(rules, measure, low, high, n_particles=n_particles,
                                          constraint=constraint)
     else:
         swarm = pso.swarm(params, rules, measure, low, high, n_particles=n_particles,

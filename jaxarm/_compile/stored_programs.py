@@ -1,6 +1,6 @@
 """Traced programs kept on disk with ``jax.export``: a new process skips tracing them.
 
-The persistent compilation cache (``jaxarm.cache``) keeps XLA's output, but a new process still
+The persistent compilation cache (``jaxarm._compile.cache``) keeps XLA's output, but a new process still
 traces each program in Python and lowers it to StableHLO before JAX can look it up in that
 cache. For jaxarm's large programs (the search, the checks, refine) that takes 0.1-0.9 s each.
 When the cache is on, jaxarm keeps every top-level program it traces as a serialized
@@ -12,7 +12,7 @@ its static arguments, the shapes and dtypes of the others, jaxarm's source files
 of jax, jaxlib, numpy, optax and evosax, the backend and the JAX settings that change traces
 (x64, the PRNG). Changes made to jaxarm's modules at run time (a test's monkeypatch of a
 constant) are not seen, as ``jax.jit``'s own cache does not see them: call
-``jaxarm.traces.keep_in(None)`` before patching. Calls that cannot be keyed that way run as
+``jaxarm._compile.stored_programs.keep_in(None)`` before patching. Calls that cannot be keyed that way run as
 plain ``jax.jit``: a static argument without a stable ``repr`` (a custom optax optimizer, say),
 an array sharded over several devices or processes (the restarts' ids when there are several;
 the other programs, on one device, are stored as with one), arguments that are not arrays or
@@ -217,7 +217,7 @@ def _settings() -> tuple:
 def _source() -> str:
     """A hash of jaxarm's Python source files (computed once per process)."""
     digest = hashlib.sha256()
-    package = pathlib.Path(__file__).parent
+    package = pathlib.Path(__file__).parents[1]  # jaxarm/
     for file in sorted(package.rglob("*.py")):
         digest.update(str(file.relative_to(package)).encode() + b"\0" + file.read_bytes())
     return digest.hexdigest()

@@ -14,7 +14,7 @@ seeds of ``jaxarm reproduce-paper``, each compared alone: 79.6 % escape with the
 penetration, 60.4 % with the sum; ``benchmarks/RESULTS.md``). The constraint rules compare it
 times the path's travelling distance (``constraints.path_measures``).
 
-The certified continuous check lives in ``jaxarm.certified``; its per-window test
+The certified continuous check lives in ``jaxarm.checks.certified``; its per-window test
 (``window_shortfall``, with ``reach_matrix``, ``tail_weights`` and ``speed_bound``) is here.
 """
 
@@ -27,25 +27,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm import path, world as world_lib
-from jaxarm.arm import link_endpoints
-
-
-def penetration(lengths, world, theta):
-    """Penetration depth of every link into every obstacle slot.
-
-    Args:
-      lengths: link lengths, shape (n_joints,).
-      world: ``WorldArrays``.
-      theta: joint angles, shape (..., n_joints).
-
-    Returns:
-      Array of shape (..., n_joints, n_obstacle_slots), >= 0.
-    """
-    links = link_endpoints(lengths, theta)
-    return jnp.stack([jnp.moveaxis(world_lib.penetration_xy(*link, world), 0, -1)
-                      for link in links], axis=-2)
-
+from jaxarm.model import path
+from jaxarm.model import world as world_lib
+from jaxarm.model.arm import link_endpoints
 
 # Written out, XLA fuses every link's exact polygon distances into one kernel. With 3 links it
 # ran about 10x slower than the links apart for 4 polygon slots of 6, 7 or 8 vertex slots and

@@ -16,7 +16,7 @@ the violation: ``sum_j max_r max(theta_j(r) - high_j, low_j - theta_j(r), 0)``.
   ``1e-3 rad`` covers ``|theta''| <= 1280 rad`` (for degree 6, ``|g_6''| <= 0.375``: free
   coefficients up to about 3,000).
 
-The Bernstein coefficients of the basis ``[h, g_6, ..., g_d]`` (``jaxarm.path``) on each piece
+The Bernstein coefficients of the basis ``[h, g_6, ..., g_d]`` (``jaxarm.model.path``) on each piece
 are a float64 table; a path's coefficients are the same linear combination as its angles, so
 they stay as well conditioned as the angles themselves.
 """
@@ -31,36 +31,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm import path
-from jaxarm._validate import finite_vector
+from jaxarm.model import path
 
 PIECES_PER_INTERVAL = 4
-
-
-def validate(value, n_joints: int) -> tuple[tuple[float, float], ...]:
-    """``value`` as one ``(low, high)`` pair per joint (rad), or a ValueError naming it."""
-    try:
-        pairs = [tuple(pair) for pair in value]
-    except TypeError:
-        raise ValueError(f"joint_limits must be a list of (low, high) pairs, got {value!r}"
-                         ) from None
-    if len(pairs) != n_joints:
-        raise ValueError(f"joint_limits must have one (low, high) pair per joint ({n_joints}), "
-                         f"got {len(pairs)}: {value!r}")
-    out = []
-    for joint, pair in enumerate(pairs):
-        low, high = (float(v) for v in finite_vector(f"joint_limits[{joint}]", pair, 2))
-        if not low < high:
-            raise ValueError(f"joint_limits[{joint}] must have low < high, "
-                             f"got ({low!r}, {high!r})")
-        out.append((low, high))
-    return tuple(out)
-
-
-def outside(limits, angles) -> list[tuple[int, float]]:
-    """``(joint, angle)`` for every angle outside its range; ``angles`` shape (n_joints,)."""
-    return [(joint, float(angle)) for joint, (angle, (low, high))
-            in enumerate(zip(angles, limits)) if not low <= angle <= high]
 
 
 def _excess(theta, low, high):

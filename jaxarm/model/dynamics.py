@@ -2,7 +2,7 @@
 
 Links are uniform rods: link k of length ``l_k`` (m) and mass ``m_k`` (kg) has its centre of
 mass mid-link and inertia ``m_k l_k^2 / 12`` about it. Gravity ``g`` (m/s^2) acts along -y.
-Joint angles are relative, as in ``jaxarm.arm``; joint k's torque acts between link k - 1 (the
+Joint angles are relative, as in ``jaxarm.model.arm``; joint k's torque acts between link k - 1 (the
 base for k = 1) and link k, positive counter-clockwise.
 
 ``inverse_dynamics`` is the recursive Newton-Euler algorithm, unrolled over the (few) links so
@@ -18,8 +18,8 @@ import functools
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm.arm import Arm
-from jaxarm.programs import jit
+from jaxarm._compile.jit import jit
+from jaxarm.model.arm import Arm
 
 CM_PER_M = 100.0
 

@@ -16,7 +16,7 @@ import threading
 
 import jax
 
-from jaxarm import traces
+from jaxarm._compile import stored_programs
 
 CPU_COMPILER_OPTIONS = {"xla_backend_optimization_level": 1}
 
@@ -30,7 +30,7 @@ def jit(fun=None, *, storable: bool = False, **options):
     result forwards ``trace``, ``lower`` and the other attributes of the top-level ``jax.jit``.
     Usable as ``functools.partial(jit, static_argnums=0)`` on a function.
 
-    ``storable=True`` lets ``jaxarm.traces`` keep the traced program on disk: only for a
+    ``storable=True`` lets ``jaxarm._compile.stored_programs`` keep the traced program on disk: only for a
     module-level function whose trace depends on nothing but its arguments and jaxarm's source
     as written (not a closure over values made at run time).
     """
@@ -48,7 +48,7 @@ except ImportError:  # pragma: no cover
 def rank_promotion_allowed(function):
     """``function`` traced with NumPy's rank promotion allowed, whatever the caller's
     ``jax_numpy_rank_promotion`` (jaxarm's tests raise on it): for code that broadcasts arrays
-    of different ranks on purpose (``jaxarm.world``'s polygon kernels, evosax's strategies)."""
+    of different ranks on purpose (``jaxarm.model.world``'s polygon kernels, evosax's strategies)."""
     @functools.wraps(function)
     def promoting(*args, **kwargs):
         with jax.numpy_rank_promotion("allow"):
@@ -65,7 +65,7 @@ def _at_top_level(args) -> bool:
 
 class _Program:
     """A ``jax.jit`` made at its first use, for the backend in use then; with
-    ``jaxarm.traces`` on, top-level calls go through stored traced programs instead.
+    ``jaxarm._compile.stored_programs`` on, top-level calls go through stored traced programs instead.
 
     Safe to call from several threads: a program is made once (and ``jax.jit`` compiled a
     program once when two threads called it together, checked by hand)."""
@@ -73,7 +73,7 @@ class _Program:
     def __init__(self, fun, options: dict, storable: bool = False):
         self._fun, self._options, self._jitted, self._storable = fun, options, None, storable
         self._nested = jax.jit(fun, **options)
-        self._stored = {}  # Call.memo_key() -> traces.Stored, or None where export refused it
+        self._stored = {}  # Call.memo_key() -> stored_programs.Stored, or None where export refused it
         self._lock = threading.Lock()  # held while _jitted or a stored program is made
         functools.update_wrapper(self, fun)
 
@@ -89,7 +89,7 @@ class _Program:
 
     @functools.cached_property
     def _static_names(self) -> frozenset:
-        names = list(traces.signature(self._fun).parameters)
+        names = list(stored_programs.signature(self._fun).parameters)
         numbers = self._options.get("static_argnums", ())
         numbers = (numbers,) if isinstance(numbers, int) else numbers
         named = self._options.get("static_argnames", ())
@@ -99,8 +99,8 @@ class _Program:
     def __call__(self, *args, **kwargs):
         if not _at_top_level((args, kwargs)):
             return self._nested(*args, **kwargs)
-        call = (traces.split_call(self._fun, self._static_names, args, kwargs)
-                if self._storable and traces.usable() else None)
+        call = (stored_programs.split_call(self._fun, self._static_names, args, kwargs)
+                if self._storable and stored_programs.usable() else None)
         if call is None:
             return self._compiled()(*args, **kwargs)
         stored = self._stored_program(call)
@@ -108,19 +108,19 @@ class _Program:
             return self._compiled()(*args, **kwargs)
         return jax.tree.unflatten(stored.out_tree, stored.call(*call.leaves))
 
-    def _stored_program(self, call: traces.Call) -> traces.Stored | None:
+    def _stored_program(self, call: stored_programs.Call) -> stored_programs.Stored | None:
         """The stored program for ``call``, made by the first thread that asks for it (one lock
         for all calls: tracing runs in Python, one thread at a time, anyway)."""
         key = call.memo_key()
         with self._lock:
             if key not in self._stored:
                 label = f"{self._fun.__module__}.{self._fun.__qualname__} {self._options!r}"
-                self._stored[key] = traces.stored_program(self._fun, label, call,
+                self._stored[key] = stored_programs.stored_program(self._fun, label, call,
                                                           self._compiler_options())
             return self._stored[key]
 
     def _cache_size(self) -> int:
-        """Programs compiled so far: ``jax.jit``'s own and those run from stored traces."""
+        """Programs compiled so far: ``jax.jit``'s own and those run from stored stored_programs."""
         jitted = self._compiled()
         with self._lock:
             stored = list(self._stored.values())

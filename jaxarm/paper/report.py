@@ -21,15 +21,21 @@ import jax
 import numpy as np
 from matplotlib.figure import Figure
 
-from jaxarm import evolution, plot, published, reconstruct, scenarios, study
+from jaxarm import plot, study
+from jaxarm._compile.padding import SMALL_BATCH
 from jaxarm._validate import positive_int
+from jaxarm.checks.evaluate import certify, fitness
 from jaxarm.choices import LIMIT_UNITS
-from jaxarm.problem import SMALL_BATCH, certify, fitness, share_capacities
-from jaxarm.polish import refine
 from jaxarm.feasible import feasible_fraction
-from jaxarm.restarts import N_ITERS, N_PARTICLES, run_restarts
+from jaxarm.io import scenario_files
+from jaxarm.model.problem import share_capacities
+from jaxarm.optim import evosax_adapter
+from jaxarm.optim.refine import refine
+from jaxarm.optim.restarts import N_ITERS, N_PARTICLES, run_restarts
+from jaxarm.paper import published, reconstruct
 from jaxarm.search import exact_text, solve
 from jaxarm.trajectory import Trajectory, min_duration
+
 
 def _vector(x, digits=4) -> str:
     return "[" + ", ".join(f"{v:.{digits}f}" for v in np.asarray(x)) + "]"
@@ -92,7 +98,7 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
     n_seeds = positive_int("n_seeds", n_seeds) if n_seeds is not None else (100 if quick else 500)
     suite_seeds = (positive_int("suite_seeds", suite_seeds) if suite_seeds is not None
                    else (50 if quick else 200))
-    suite = _suite_problems(list(scenarios.available()) if suite is None else suite)
+    suite = _suite_problems(list(scenario_files.available()) if suite is None else suite)
     degrees = [positive_int("degrees", d, minimum=6) for d in degrees]
     workers = _section_workers(workers)
     out = pathlib.Path(out_dir)
@@ -101,7 +107,7 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
     chunk = _shared_chunk(n_seeds, suite_seeds)
     # The paper's tables use the paper's check: collision-free at the 101 samples of r.
     case1, case2, case3, death_trap = (
-        scenarios.load_scenario(name, collision="sampled")
+        scenario_files.load_scenario(name, collision="sampled")
         for name in ("paper-case-1", "paper-case-2", "paper-case-3", "death-trap"))
     # The rules section and the certified counts run case 1 and death-trap at the suite's
     # capacities (the same obstacles), so that they run the suite's compiled programs.
@@ -324,7 +330,7 @@ def _reconstruction_section(report: _Report, case1, case2, case1_study) -> None:
     errors = [abs(v.fitness - v.published.fitness) / v.published.fitness for v in case1_verdicts]
     report.add(
         "## How the scenarios were reconstructed", "",
-        "`jaxarm.reconstruct` fitted case 1's start and goal postures to Table 2: fitness depends "
+        "`jaxarm.paper.reconstruct` fitted case 1's start and goal postures to Table 2: fitness depends "
         "only on the joint displacement, so with the end-effector held at (50, -10) and (50, 40) "
         "the two end-effector orientations and elbows are the unknowns "
         f"(fitted: start phi = {_orientation(case1.start):.4f} rad, goal phi = "
@@ -482,7 +488,7 @@ def _suite_problems(names) -> list:
     a bad name or file fails first."""
     if isinstance(names, str) or not names:
         raise ValueError(f"suite must be a non-empty list of scenario names, got {names!r}")
-    return share_capacities(scenarios.load_scenario(name, collision="sampled") for name in names)
+    return share_capacities(scenario_files.load_scenario(name, collision="sampled") for name in names)
 
 
 def _shared_chunk(n_seeds: int, suite_seeds: int) -> int:
@@ -562,7 +568,7 @@ EVOSAX_RULES = ["evosax:CMA_ES", "evosax:CMA_ES:feasibility", "evosax:DE", "evos
 def rule_methods() -> tuple[list, str]:
     """The rules section's methods: ``RULES``, and ``EVOSAX_RULES`` where evosax is installed;
     and a sentence saying which."""
-    if evolution.available():
+    if evosax_adapter.available():
         return RULES + EVOSAX_RULES, (
             "The evosax rows run CMA-ES and differential evolution (evosax's defaults, "
             "population 20) in the same compiled restart loop, same seeds and budget.")
@@ -575,7 +581,7 @@ def _rules_section(report: _Report, problems: list, n_seeds: int, chunk: int,
     methods, evosax_note = rule_methods()
     report.add(
         "## Constraint rules compared (preset A, and evosax strategies)", "",
-        f"{n_seeds} seeds per row, the paper's sampled check. Rules (`jaxarm.constraints`): the "
+        f"{n_seeds} seeds per row, the paper's sampled check. Rules (`jaxarm.optim.constraints`): the "
         "paper's death penalty, feasibility rules, the epsilon-constrained comparison and an "
         "adaptive penalty; *ring* rows use the lbest ring topology instead of the global best, "
         "*global-ring* the global best for the first 5 % of the iterations and the ring after; "
@@ -679,7 +685,7 @@ def compare_degrees_and_refine(problems, degrees=(6, 7, 8), n_restarts: int = 10
     the same after refining every feasible restart, and wall times (compilation included).
     """
     def restarts(problem, constraint):  # solve's restarts, without certifying its answer
-        return run_restarts(problem, evolution.resolve_method("A"), constraint,
+        return run_restarts(problem, evosax_adapter.resolve_method("A"), constraint,
                             n_particles=N_PARTICLES, n_iters=N_ITERS, seed=seed,
                             first_restart=0, n_restarts=n_restarts)
 

@@ -80,9 +80,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm import collision as collision_lib
-from jaxarm import path
-from jaxarm import world as world_lib
+from jaxarm.checks import collision as collision_lib
+from jaxarm.model import path
+from jaxarm.model import world as world_lib
 
 MAX_LEVELS = 22  # halvings of a sample window; offsets stay exact integers in float32
 LANES = 1024  # paths bisected at once on an accelerator ...

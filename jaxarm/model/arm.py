@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+
 import jax.numpy as jnp
 import numpy as np
 
@@ -22,7 +23,7 @@ class Arm:
     Args:
       lengths: link lengths (cm), base first; any number of links, each finite and > 0.
       masses: link masses (kg), one per link, each finite and >= 0, or None when unknown
-        (kinematics only; ``jaxarm.dynamics`` needs them). Links are uniform rods.
+        (kinematics only; ``jaxarm.model.dynamics`` needs them). Links are uniform rods.
       gravity: gravitational acceleration along -y (m/s^2), finite and >= 0; 0 for an arm
         moving in a horizontal plane.
 

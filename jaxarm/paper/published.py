@@ -2,7 +2,7 @@
 
 Every coefficient set is ``[a61, a62, a63]``; a fitness of 0 is the paper's verdict "collides".
 These are what the shipped paper scenarios are reconstructed from and checked against
-(``jaxarm.reconstruct``), and what ``reproduce_paper`` compares with.
+(``jaxarm.paper.reconstruct``), and what ``reproduce_paper`` compares with.
 """
 
 from __future__ import annotations

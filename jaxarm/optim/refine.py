@@ -24,10 +24,12 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from jaxarm import collision as collision_lib
-from jaxarm import path
-from jaxarm.problem import Problem, _as_params, on_padded_rows, vmapped_evaluate
-from jaxarm.programs import jit
+from jaxarm._compile.jit import jit
+from jaxarm._compile.padding import on_padded_rows
+from jaxarm.checks import collision as collision_lib
+from jaxarm.checks.evaluate import vmapped_evaluate
+from jaxarm.model import path
+from jaxarm.model.problem import Problem, as_params
 
 
 class RefineResult(NamedTuple):
@@ -185,7 +187,7 @@ def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weig
       >>> bool(polished.fitness > 0.1476)
       True
     """
-    x = _as_params(problem, x)
+    x = as_params(problem, x)
     leading = x.shape[:-1]
     if x.size == 0:  # nothing to polish (e.g. no feasible restart): no kernel call
         zeros = np.zeros(leading, np.asarray(x).dtype)

@@ -9,7 +9,7 @@ Where: ``$JAXARM_CACHE_DIR`` if set (``off``, ``0`` or empty: no cache), else th
 directory (``$XDG_CACHE_HOME`` or ``~/.cache`` on Linux, ``~/Library/Caches`` on macOS,
 ``%LOCALAPPDATA%`` on Windows), under ``jaxarm/xla``. A cached program is the same program,
 so results are bit-identical with or without the cache. The same call also keeps jaxarm's
-traced programs in ``traces/`` there (``jaxarm.traces``), so a new process skips tracing too.
+traced programs in ``traces/`` there (``jaxarm._compile.stored_programs``), so a new process skips tracing too.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def cache_dir() -> pathlib.Path | None:
 
 def enable_compilation_cache(path: str | os.PathLike | None = None) -> pathlib.Path | None:
     """Keep compiled programs in ``path`` (default: ``cache_dir()``) for later processes, and
-    jaxarm's traced programs in ``path / "traces"`` (``jaxarm.traces``).
+    jaxarm's traced programs in ``path / "traces"`` (``jaxarm._compile.stored_programs``).
 
     Args:
       path: a directory (created if missing), or None for the default.
@@ -63,7 +63,7 @@ def enable_compilation_cache(path: str | os.PathLike | None = None) -> pathlib.P
 
     jax.config.update("jax_compilation_cache_dir", str(target))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_SECONDS)
-    from jaxarm import traces
+    from jaxarm._compile import stored_programs
 
-    traces.keep_in(target / "traces")
+    stored_programs.keep_in(target / "traces")
     return target

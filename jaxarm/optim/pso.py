@@ -33,7 +33,7 @@ case 1 and death-trap, its block then at x = 30, for epsilon, when the rules com
 of a collision alone; ``benchmarks/RESULTS.md`` has what it does since). The reported global
 best is the swarm's best personal best either way.
 
-Scores come from a constraint-handling rule (``jaxarm.constraints``) applied to what the
+Scores come from a constraint-handling rule (``jaxarm.optim.constraints``) applied to what the
 measure function reports; every personal best is scored again at every update, so rules that
 change over the run compare like with like. A non-finite score (NaN or inf coordinates, say)
 counts as -inf, so it never becomes a personal or global best.
@@ -48,10 +48,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm import constraints
-from jaxarm.choices import (BETA_MODES, PSO_METHODS, TIE_BREAKS, TOPOLOGIES,
-                            TOPOLOGY_SUFFIXES, VELOCITY_RULES, one_of)
-from jaxarm.constraints import Measured
+from jaxarm.choices import (
+    BETA_MODES,
+    PSO_METHODS,
+    TIE_BREAKS,
+    TOPOLOGIES,
+    TOPOLOGY_SUFFIXES,
+    VELOCITY_RULES,
+    one_of,
+)
+from jaxarm.optim import constraints
+from jaxarm.optim.constraints import Measured
 
 
 class PSOParams(NamedTuple):

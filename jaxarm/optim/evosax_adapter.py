@@ -3,7 +3,7 @@
 A strategy (a class of ``evosax.algorithms`` built from a population size and a solution
 shape alone: ``"evosax:CMA_ES"``, ``"evosax:DE"`` for ``DifferentialEvolution`` and
 ``"evosax:PSO"`` are tested or tried; others are not) becomes a ``pso.Swarm``, so it
-runs in the restart loop of ``jaxarm.restarts`` exactly like the PSO: vmapped over restarts
+runs in the restart loop of ``jaxarm.optim.restarts`` exactly like the PSO: vmapped over restarts
 in one compiled program, with the same seeds, the same budget (``n_particles`` evaluations
 at iteration 0, then ``n_particles`` per generation for ``n_iters`` generations) and the
 escape iteration, history and best path recorded the same way.
@@ -30,9 +30,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from jaxarm import pso
-from jaxarm.constraints import constraint_index
-from jaxarm.programs import rank_promotion_allowed
+from jaxarm._compile.jit import rank_promotion_allowed
+from jaxarm.optim import pso
+from jaxarm.optim.constraints import constraint_index
 
 PREFIX = "evosax:"
 ALIASES = {"DE": "DifferentialEvolution", "GA": "SimpleGA"}
@@ -92,7 +92,7 @@ def resolve(method: str) -> StrategyConfig:
 
 def resolve_method(method):
     """A preset name, ``"evosax:<Strategy>"``, a ``PSOConfig`` or a ``StrategyConfig``, as the
-    validated config that ``jaxarm.restarts`` runs."""
+    validated config that ``jaxarm.optim.restarts`` runs."""
     if isinstance(method, StrategyConfig):
         return method.validate()
     if isinstance(method, str) and method.startswith(PREFIX):

@@ -1,0 +1,123 @@
+"""Independent oracles for tests and benchmarks: shapely checks of segments and whole motions.
+
+Needs shapely (``pip install shapely``; it is in the ``test`` extra); nothing in the library
+imports this module.
+
+It shares nothing with the kernels but the problem's data and the polynomial basis
+(``path.basis_coefficients``, checked against the paper's eq. 10 in the tests): the joint
+angles are evaluated in float64 NumPy at ``n_points`` equally spaced times, forward kinematics
+is written out again, and every link is measured against every obstacle with shapely's exact
+distances.
+Obstacles are open sets (grazing contact is not a collision), which is shapely's
+``relate_pattern(segment, obstacle, "T********")``: the interiors intersect.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+
+
+def link_segments(problem, x, n_points: int) -> np.ndarray:
+    """Every link's end points along the motion, in float64.
+
+    Args:
+      x: free parameters, shape (n_paths, n_free).
+
+    Returns:
+      Array of shape (n_paths, n_points, n_joints, 2, 2): (start, end) of each link.
+    """
+    from jaxarm.model.path import basis_coefficients
+
+    start, goal = np.asarray(problem.start), np.asarray(problem.goal)
+    basis = basis_coefficients(problem.degree)  # (degree - 4, degree + 1), float64
+    free = np.asarray(x, np.float64).reshape(len(x), problem.degree - 5, len(start))
+    polynomial = (np.einsum("pmj,mn->pjn", free, basis[1:])
+                  + (goal - start)[:, None] * basis[0])
+    polynomial[..., 0] += start
+    r = np.linspace(0.0, 1.0, n_points)
+    theta = np.einsum("pjn,tn->ptj", polynomial, r[:, None] ** np.arange(problem.degree + 1))
+    absolute = np.cumsum(theta, axis=-1)
+    steps = np.asarray(problem.arm.lengths) * np.stack([np.cos(absolute), np.sin(absolute)], -1
+                                                       ).transpose(3, 0, 1, 2)
+    joints = np.concatenate([np.zeros(steps.shape[:-1] + (1,)), np.cumsum(steps, -1)], -1)
+    joints = joints.transpose(1, 2, 3, 0)  # (paths, points, joints + 1, 2)
+    return np.stack([joints[:, :, :-1], joints[:, :, 1:]], axis=-2)
+
+
+def dense_clearance(problem, x, n_points: int = 4001) -> np.ndarray:
+    """Smallest distance of any link to any obstacle over ``n_points`` times of each motion.
+
+    Negative values are minus the deepest penetration found: how far the deepest point of a
+    link lies inside an obstacle (for polygons measured at 33 points of the overlap).
+
+    Args:
+      x: free parameters, shape (n_paths, n_free).
+
+    Returns:
+      Array of shape (n_paths,), cm (empty for no paths).
+    """
+    segments = link_segments(problem, x, n_points)
+    lines = shapely.linestrings(segments.reshape(-1, 2, 2))
+    nearest = np.full(len(lines), np.inf)
+    circles, polygons = shapely_obstacles(problem.world)
+    for center, radius in circles:
+        nearest = np.minimum(nearest, shapely.distance(lines, center) - radius)
+    for polygon in polygons:
+        distance = shapely.distance(lines, polygon)
+        inside = np.nonzero(shapely.relate_pattern(lines, polygon, "T********"))[0]
+        overlap = shapely.intersection(lines[inside], polygon)
+        points = shapely.line_interpolate_point(overlap[:, None], np.linspace(0, 1, 33),
+                                                normalized=True)
+        depth = shapely.distance(points, polygon.exterior).max(axis=1)
+        distance[inside] = -np.maximum(depth, 1e-9)  # interiors meet: never >= 0
+        nearest = np.minimum(nearest, distance)
+    return nearest.reshape(segments.shape[:3]).min(axis=(1, 2))
+
+
+def shapely_obstacles(world):
+    """Circles as (center, radius) for exact distances; boxes and polygons as Polygons."""
+    polygons = [shapely.box(*lo, *hi) for lo, hi in world.boxes]
+    polygons += [shapely.Polygon(p) for p in world.polygons]
+    return [(shapely.Point(c[:2]), c[2]) for c in world.circles], polygons
+
+
+def oracle_separation(world, start, end):
+    """Signed separation of each segment from the nearest obstacle, and the open-set verdict."""
+    circles, polygons = shapely_obstacles(world)
+    segments = shapely.linestrings(np.stack([start, end], axis=-2))
+    distance = np.full(len(segments), np.inf)
+    hit = np.zeros(len(segments), dtype=bool)
+    for center, radius in circles:
+        d = shapely.distance(segments, center) - radius
+        distance, hit = np.minimum(distance, d), hit | (d < 0)
+    for polygon in polygons:
+        distance = np.minimum(distance, shapely.distance(segments, polygon))
+        hit |= shapely.relate_pattern(segments, polygon, "T********")
+    return distance, hit
+
+
+def oracle_path_collides(problem, x, n_samples):
+    """Per path: does any link's interior meet any obstacle's at any of n_samples samples.
+
+    The links come from ``link_segments`` (float64 NumPy, its own kinematics),
+    not from the kernels under test.
+    """
+    segments = link_segments(problem, np.asarray(x), n_samples)  # (paths, samples, links, 2, 2)
+    start, end = segments[..., 0, :].reshape(-1, 2), segments[..., 1, :].reshape(-1, 2)
+    # Only segments whose bounding box meets some obstacle's can meet its interior: shapely
+    # checks those (building every segment as a shapely object was most of the time).
+    low, high = np.minimum(start, end), np.maximum(start, end)
+    near = np.zeros(len(start), dtype=bool)
+    for box in obstacle_bounds(problem.world):
+        near |= np.all(high >= box[:2], axis=-1) & np.all(low <= box[2:], axis=-1)
+    hit = np.zeros(len(start), dtype=bool)
+    hit[near] = oracle_separation(problem.world, start[near], end[near])[1]
+    return hit.reshape(len(x), -1).any(axis=-1)
+
+
+def obstacle_bounds(world) -> np.ndarray:
+    """(min x, min y, max x, max y) of every obstacle, from shapely; shape (n_obstacles, 4)."""
+    circles, polygons = shapely_obstacles(world)
+    bounds = [(c.x - r, c.y - r, c.x + r, c.y + r) for c, r in circles]
+    return np.array(bounds + [shapely.bounds(p) for p in polygons]).reshape(-1, 4)
