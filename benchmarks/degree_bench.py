@@ -29,7 +29,7 @@ METHODS = "A:feasibility,A-ring[inertia_end=0.4]:feasibility"
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=300)
+    parser.add_argument("--restarts", type=int, default=300)
     parser.add_argument("--scenarios", default="death-trap")
     parser.add_argument("--degrees", default="6,7,8")
     parser.add_argument("--methods", default=METHODS)
@@ -37,7 +37,7 @@ def main():
     args = parser.parse_args()
     print(f"jax {jax.__version__} ({jax.default_backend()}), "
           f"{platform.processor() or platform.machine()}, "
-          f"{args.seeds} seeds x 20 particles x 100 iterations, {args.collision} check\n")
+          f"{args.restarts} seeds x 20 particles x 100 iterations, {args.collision} check\n")
     print("| scenario | degree | free | method | escape rate [95 % CI] | median / best fitness "
           "| median length (rad) | median max jerk | time (s) |")
     print("|---|---|---|---|---|---|---|---|---|")
@@ -46,7 +46,7 @@ def main():
         for degree in map(int, args.degrees.split(",")):
             problem = base.replace(degree=degree)
             study = jaxarm.escape_study(problem, split_methods(args.methods),
-                                        n_seeds=args.seeds, progress=False)
+                                        n_restarts=args.restarts, progress=False)
             for method in study.methods:
                 s, outcome = method.summary(), method.outcome
                 escaped = outcome.best_x[outcome.feasible]

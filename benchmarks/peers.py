@@ -75,11 +75,11 @@ def summarise(name, successes, seconds, first_times, lengths, jerks):
                length=median(lengths), jerk=median(jerks))
 
 
-def run_jaxarm(problem, constraint, n_seeds):
-    jaxarm.solve(problem, "A", n_restarts=n_seeds, constraint=constraint)  # compile
+def run_jaxarm(problem, constraint, n_restarts):
+    jaxarm.solve(problem, "A", n_restarts=n_restarts, constraint=constraint)  # compile
     began = time.perf_counter()
-    result = jaxarm.solve(problem, "A", n_restarts=n_seeds, constraint=constraint, seed=1)
-    per_run = (time.perf_counter() - began) / n_seeds
+    result = jaxarm.solve(problem, "A", n_restarts=n_restarts, constraint=constraint, seed=1)
+    per_run = (time.perf_counter() - began) / n_restarts
     jaxarm.solve(problem, "A", n_restarts=1, constraint=constraint)  # compile one restart
     began = time.perf_counter()
     jaxarm.solve(problem, "A", n_restarts=1, constraint=constraint, seed=1)
@@ -120,13 +120,13 @@ def _import_pyswarms():
     return pyswarms
 
 
-def run_pyswarms(problem, penalty, n_seeds):
+def run_pyswarms(problem, penalty, n_restarts):
     pyswarms = _import_pyswarms()
 
     low, high = problem.bounds()
     cost = _cost_fn(problem, penalty)
     successes, seconds, firsts, lengths, jerks = [], [], [], [], []
-    for seed in range(n_seeds):
+    for seed in range(n_restarts):
         rng = np.random.default_rng(seed)
         np.random.seed(seed)
         init = rng.uniform(low, high, (N_PARTICLES, problem.n_free))
@@ -149,7 +149,7 @@ def run_pyswarms(problem, penalty, n_seeds):
                      seconds, firsts, lengths, jerks)
 
 
-def run_evosax(problem, penalty, n_seeds):
+def run_evosax(problem, penalty, n_restarts):
     from evosax.algorithms import PSO
 
     low, high = (jnp.asarray(b, jnp.float32) for b in problem.bounds())
@@ -177,11 +177,11 @@ def run_evosax(problem, penalty, n_seeds):
         return state.best_solution, best_costs
 
     run = jax.jit(jax.vmap(one_seed))
-    keys = jax.random.split(jax.random.key(0), n_seeds)
+    keys = jax.random.split(jax.random.key(0), n_restarts)
     jax.block_until_ready(run(keys))  # compile
     began = time.perf_counter()
     best_x, best_costs = jax.block_until_ready(run(keys))
-    per_run = (time.perf_counter() - began) / n_seeds
+    per_run = (time.perf_counter() - began) / n_restarts
     best_x, best_costs = np.asarray(best_x), np.asarray(best_costs)
     ok = ~np.asarray(jaxarm.collides(problem, best_x))
     firsts = [per_run * (int(np.argmax(c < 0)) + 1) / N_ITERS for c in best_costs[ok]]
@@ -190,12 +190,12 @@ def run_evosax(problem, penalty, n_seeds):
                      [m[0] for m in metrics], [m[1] for m in metrics])
 
 
-def run_pycma(problem, n_seeds):
+def run_pycma(problem, n_restarts):
     import cma
 
     low, high = problem.bounds()
     successes, seconds, firsts, lengths, jerks = [], [], [], [], []
-    for seed in range(n_seeds):
+    for seed in range(n_restarts):
         measured = {}  # ConstrainedFitnessAL asks for f and g one path at a time
 
         def distance(x):
@@ -275,7 +275,7 @@ def posture_checker(problem):
     return free
 
 
-def run_ompl(problem, n_seeds, budget=1.0):
+def run_ompl(problem, n_restarts, budget=1.0):
     from ompl import base as ob
     from ompl import geometric as og
     from ompl import util as ou
@@ -291,7 +291,7 @@ def run_ompl(problem, n_seeds, budget=1.0):
     space.setBounds(bounds)
     free = posture_checker(problem)
     successes, seconds, firsts, lengths, jerks = [], [], [], [], []
-    for _ in range(n_seeds):  # one RNG stream, seeded once in main(): runs are repeatable
+    for _ in range(n_restarts):  # one RNG stream, seeded once in main(): runs are repeatable
         setup = og.SimpleSetup(space)
         setup.setStateValidityChecker(lambda s: free(np.array([s[j] for j in range(n)])))
         setup.getSpaceInformation().setStateValidityCheckingResolution(0.002)
@@ -321,7 +321,7 @@ def run_ompl(problem, n_seeds, budget=1.0):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=30)
+    parser.add_argument("--restarts", type=int, default=30)
     parser.add_argument("--scenarios", default="paper-case-1,paper-case-2,narrow-gap,death-trap")
     parser.add_argument("--peers", default=",".join(PEERS),
                         help=f"comma-separated, from {','.join(PEERS)} (all)")
@@ -334,15 +334,15 @@ def main():
         from ompl import util
 
         util.RNG.setSeed(1)  # before any planner samples
-    print(f"jax {jax.__version__} ({jax.default_backend()}), {args.seeds} seeds per method, "
+    print(f"jax {jax.__version__} ({jax.default_backend()}), {args.restarts} seeds per method, "
           f"{N_PARTICLES} particles x {N_ITERS} iterations for the PSOs, 1 s budget for OMPL")
     for name in args.scenarios.split(","):
         problem = jaxarm.load_scenario(name)
         print(f"\n### {name} ({problem.collision} check)\n")
-        rows = [run_jaxarm(problem, "death", args.seeds),
-                run_jaxarm(problem, "feasibility", args.seeds)]
+        rows = [run_jaxarm(problem, "death", args.restarts),
+                run_jaxarm(problem, "feasibility", args.restarts)]
         for peer in peers:
-            rows += PEERS[peer](problem, args.seeds)
+            rows += PEERS[peer](problem, args.restarts)
         print("| method | success [95 % CI] | s per run | median s to first feasible | "
               "median joint-space length (rad) | median max jerk (rad / r^3) |")
         print("|---|---|---|---|---|---|")

@@ -27,10 +27,10 @@ def free_port() -> int:
         return probe.getsockname()[1]
 
 
-def run(n_processes: int, n_seeds: int, csv: str) -> float:
+def run(n_processes: int, n_restarts: int, csv: str) -> float:
     command = [sys.executable, "-m", "jaxarm"]
     study = ["study", "paper-case-1", "--collision", "sampled", "--methods", "A",
-             "--seeds", str(n_seeds), "--csv", csv]
+             "--restarts", str(n_restarts), "--csv", csv]
     env = dict(os.environ, JAX_PLATFORMS="cpu")
     began = time.perf_counter()
     if n_processes == 1:
@@ -49,7 +49,7 @@ def run(n_processes: int, n_seeds: int, csv: str) -> float:
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=10_000)
+    parser.add_argument("--restarts", type=int, default=10_000)
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
     times = {1: [], 2: []}
@@ -57,9 +57,9 @@ def main():
         outputs = {n: os.path.join(scratch, f"{n}.csv") for n in times}
         for _ in range(args.repeats):
             for n in times:
-                times[n].append(run(n, args.seeds, outputs[n]))
+                times[n].append(run(n, args.restarts, outputs[n]))
         same = open(outputs[1]).read() == open(outputs[2]).read()
-    print(f"{os.cpu_count()} CPU cores, {args.seeds} seeds, {args.repeats} runs each; "
+    print(f"{os.cpu_count()} CPU cores, {args.restarts} seeds, {args.repeats} runs each; "
           f"same CSV from 1 and 2 processes: {same}")
     print("| processes | wall time per run, median (s) | runs (s) |")
     print("|---|---|---|")

@@ -13,7 +13,7 @@ Runs ``jaxarm.paper.reconstruct`` end to end and prints markdown (the source of 
    obstacle-free optimum; label agreement with one and two circles, and under a dense sweep.
 
     python benchmarks/reconstruct_scenarios.py            # about 5 minutes on 2 CPU cores
-    python benchmarks/reconstruct_scenarios.py --seeds 100
+    python benchmarks/reconstruct_scenarios.py --restarts 100
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ def fit_case_1() -> reconstruct.PostureFit:
     return fit
 
 
-def obstacles_case_1(fit, n_seeds: int) -> None:
+def obstacles_case_1(fit, n_restarts: int) -> None:
     base = jaxarm.Problem(arm=ARM, start=fit.start, goal=fit.goal, collision="sampled",
                           capacities=(4, 4, 4))
     candidates = reconstruct.circle_candidates(base, a6_array(published.CASE_1))
@@ -67,9 +67,9 @@ def obstacles_case_1(fit, n_seeds: int) -> None:
     print(f"\nTable 2 paths free: {sum(v.agrees for v in verdicts)}/17 sampled, "
           f"{int(certified.sum())}/17 certified; obstacle-free optimum a6 = 0 "
           f"{'blocked' if float(jaxarm.fitness(problem, [0.0, 0.0, 0.0])) == 0 else 'FREE'}\n")
-    study = escape_study(problem, ["A", "B", "C"], n_seeds=n_seeds, progress=False)
+    study = escape_study(problem, ["A", "B", "C"], n_restarts=n_restarts, progress=False)
     low, high = wilson_interval(3, 7)
-    print(f"Death-penalty escape over {n_seeds} seeds (paper: 3/7 each, 95 % interval "
+    print(f"Death-penalty escape over {n_restarts} seeds (paper: 3/7 each, 95 % interval "
           f"{low:.0%}-{high:.0%}):\n")
     print("| preset | escaped | 95 % interval | median escape iteration | best fitness |")
     print("|---|---|---|---|---|")
@@ -121,11 +121,11 @@ def obstacles_cases_2_and_3() -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=500, help="escape-study seeds (case 1)")
+    parser.add_argument("--restarts", type=int, default=500, help="escape-study seeds (case 1)")
     args = parser.parse_args()
     began = time.perf_counter()
     fit = fit_case_1()
-    obstacles_case_1(fit, args.seeds)
+    obstacles_case_1(fit, args.restarts)
     obstacles_cases_2_and_3()
     print(f"Total {time.perf_counter() - began:.0f} s")
 

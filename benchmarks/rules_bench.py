@@ -29,14 +29,14 @@ from jaxarm.paper.report import rule_methods
 from jaxarm.stats import wilson_interval
 
 
-def rules_table(problem, n_seeds: int, labels: list[str] | None, seed: int) -> list[str]:
+def rules_table(problem, n_restarts: int, labels: list[str] | None, seed: int) -> list[str]:
     methods = rule_methods()[0]
     if labels is not None:  # the death penalty always: the last column compares with it
         unknown = set(labels) - set(methods)
         if unknown:
             raise SystemExit(f"--methods: unknown {sorted(unknown)}")
         methods = [m for m in methods if m in set(labels) | {"A"}]
-    result = jaxarm.escape_study(problem, methods, n_seeds=n_seeds, seed=seed, progress=False)
+    result = jaxarm.escape_study(problem, methods, n_restarts=n_restarts, seed=seed, progress=False)
     lines = []
     for method in result.methods:
         s, outcome = method.summary(), method.outcome
@@ -55,7 +55,7 @@ def rules_table(problem, n_seeds: int, labels: list[str] | None, seed: int) -> l
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=300)
+    parser.add_argument("--restarts", type=int, default=300)
     parser.add_argument("--modes", default="sampled,certified")
     parser.add_argument("--parts", default="rules,share",
                         help="comma-separated: rules (the rules table), share (feasible shares)")
@@ -75,26 +75,26 @@ def main():
     chosen = args.scenarios.split(",") if args.scenarios else None
     if "rules" in parts:
         labels = split_methods(args.methods) if args.methods else None
-        rules_part(modes, args.seeds, chosen or ["paper-case-1", "death-trap"], labels, args.seed)
+        rules_part(modes, args.restarts, chosen or ["paper-case-1", "death-trap"], labels, args.seed)
     if "share" in parts:
         share_part(modes, args.draws, args.start_seeds, chosen or jaxarm.available_scenarios())
 
 
-def rules_part(modes: list[str], n_seeds: int, names: list[str], labels: list[str] | None,
+def rules_part(modes: list[str], n_restarts: int, names: list[str], labels: list[str] | None,
                seed: int) -> None:
-    print(f"{n_seeds} seeds from seed {seed}, 100 iterations\n")
+    print(f"{n_restarts} seeds from seed {seed}, 100 iterations\n")
     print("| scenario | check | rule | escape rate [95 % CI] | ends feasible | "
           "median / best fitness (feasible) | vs death penalty | time (s) |")
     print("|---|---|---|---|---|---|---|---|")
     for mode in modes:
         for name in names:
             problem = jaxarm.load_scenario(name, collision=mode)
-            for line in rules_table(problem, n_seeds, labels, seed):
+            for line in rules_table(problem, n_restarts, labels, seed):
                 print(line, flush=True)
 
 
-def share_part(modes: list[str], n_draws: int, n_seeds: int, names: list[str]) -> None:
-    print(f"\nfeasible share from {n_draws} uniform paths; iteration-0 escape of {n_seeds} "
+def share_part(modes: list[str], n_draws: int, n_restarts: int, names: list[str]) -> None:
+    print(f"\nfeasible share from {n_draws} uniform paths; iteration-0 escape of {n_restarts} "
           "initial swarms\n")
     print("| scenario | check | free share [95 % CI] | start escape: predicted [95 % CI] | "
           "measured [95 % CI] | intervals overlap |")
@@ -102,16 +102,16 @@ def share_part(modes: list[str], n_draws: int, n_seeds: int, names: list[str]) -
     for mode in modes:
         for name in names:
             problem = jaxarm.load_scenario(name, collision=mode)
-            share = jaxarm.feasible_fraction(problem, n_samples=n_draws)
-            start = jaxarm.escape_study(problem, ["A"], n_seeds=n_seeds, n_iters=1,
+            share = jaxarm.feasible_fraction(problem, n_paths=n_draws)
+            start = jaxarm.escape_study(problem, ["A"], n_restarts=n_restarts, n_iters=1,
                                         progress=False)["A"]
             hits = int(np.sum(start.outcome.escape_iter == 0))
-            seen_low, seen_high = wilson_interval(hits, n_seeds)
+            seen_low, seen_high = wilson_interval(hits, n_restarts)
             predicted, (low, high) = share.start_escape(20)
             overlap = "yes" if low <= seen_high and seen_low <= high else "no"
             print(f"| {name} | {mode} | {share.fraction:.3%} [{share.interval[0]:.3%}, "
                   f"{share.interval[1]:.3%}] | {predicted:.1%} [{low:.1%}, {high:.1%}] | "
-                  f"{hits / n_seeds:.1%} [{seen_low:.1%}, {seen_high:.1%}] | {overlap} |",
+                  f"{hits / n_restarts:.1%} [{seen_low:.1%}, {seen_high:.1%}] | {overlap} |",
                   flush=True)
 
 

@@ -20,8 +20,8 @@ from jaxarm.optim import constraints
 
 def depth_alone(fitness, violation, distance):
     """What the rules compared before: the violation without the distance."""
-    return constraints.Measured(objective=1.0 / distance, fitness=fitness, violation=violation,
-                                reported_violation=violation)
+    return constraints.Measured(objective=1.0 / distance, fitness=fitness, ranked_violation=violation,
+                                violation=violation)
 
 
 def search(problem, n_restarts, measures):

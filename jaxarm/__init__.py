@@ -51,7 +51,7 @@ _EXPORTS = {
     "load_run": "jaxarm.io.runs",
     "solve": "jaxarm.search",
     "Study": "jaxarm.study",
-    "Variant": "jaxarm.study",
+    "Variant": "jaxarm.optim.methods",
     "escape_study": "jaxarm.study",
     "World": "jaxarm.model.world",
     "Trajectory": "jaxarm.trajectory",

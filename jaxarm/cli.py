@@ -75,8 +75,9 @@ def _add_common_options(parser: argparse.ArgumentParser) -> None:
 def _add_search_options(parser: argparse.ArgumentParser) -> None:
     _add_common_options(parser)
     parser.add_argument("scenario", help="a shipped scenario name or a path to a .toml file")
-    parser.add_argument("--constraint", default="death", choices=CONSTRAINTS,
-                        help="constraint handling (default: death, the paper's)")
+    parser.add_argument("--constraint", choices=CONSTRAINTS,
+                        help="constraint handling (default: the rule a method names, as in "
+                             "A:feasibility, else death, the paper's)")
     parser.add_argument("--particles", type=_at_least(2), default=20,
                         help="swarm size, >= 2 (20)")
     parser.add_argument("--iters", type=_positive, default=100, help="PSO iterations (100)")
@@ -133,7 +134,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f"the paper's preset, or one with the ring (A-ring) or "
                             f"global-then-ring (A-global-ring) topology: one of "
                             f"{', '.join(PSO_METHODS)}, optionally with PSOConfig fields "
-                            f"changed in brackets, such as 'A-ring[inertia_end=0.4]' (A)")
+                            f"changed in brackets, such as 'A-ring[inertia_end=0.4]', and a "
+                            f"constraint rule after a colon ('A:feasibility'); or "
+                            f"evosax:<Strategy> (A)")
     solve.add_argument("--restarts", type=_positive, default=1, help="independent swarms (1)")
     solve.add_argument("--refine", choices=("best", "all"),
                        help="polish with gradient steps after PSO: the best restart, or every "
@@ -163,7 +166,7 @@ def build_parser() -> argparse.ArgumentParser:
                                 description="Escape-probability study: every method over the "
                                             "same seeds, with 95 % Wilson intervals.")
     _add_search_options(study)
-    study.add_argument("--seeds", type=_positive, default=500, help="seeds per method (500)")
+    study.add_argument("--restarts", type=_positive, default=500, help="restarts per method (500); restart i is seeded by (--seed, i)")
     study.add_argument("--methods", default="A,B,C",
                        help="comma-separated: A, B, C, A-ring (preset A, ring topology), "
                             "A-global-ring (the global best for 5 %% of the iterations, then the "
@@ -192,12 +195,12 @@ def build_parser() -> argparse.ArgumentParser:
                            help="output folder (results)")
     reproduce.add_argument("--quick", action="store_true",
                            help="smaller studies (a few minutes on 2 cores)")
-    reproduce.add_argument("--seeds", type=_positive,
-                           help="seeds of the case-1 study (500; 100 with --quick)")
+    reproduce.add_argument("--restarts", type=_positive,
+                           help="restarts of the case-1 study (500; 100 with --quick)")
     reproduce.add_argument("--suite", help="comma-separated scenarios for the suite study "
                                            "(default: all shipped)")
-    reproduce.add_argument("--suite-seeds", type=_positive,
-                           help="seeds per suite scenario (200; 50 with --quick)")
+    reproduce.add_argument("--suite-restarts", type=_positive,
+                           help="restarts per suite scenario (200; 50 with --quick)")
     reproduce.add_argument("--degrees", type=_degrees, default=(6, 7, 8),
                            help="path degrees compared beyond the paper (6,7,8)")
     reproduce.add_argument("--workers", type=_positive,
@@ -264,7 +267,7 @@ def _check_settings(args) -> None:
     from jaxarm._validate import check_search
 
     check_search(n_particles=args.particles, n_iters=args.iters, seed=args.seed,
-                 constraint=args.constraint)
+                 constraint=args.constraint or "death")
 
 
 def _timing_limits(args, problem) -> dict:
@@ -337,9 +340,9 @@ def _report_trajectory(args, problem, result, limits: dict) -> None:
 def _solve(args) -> None:
     _check_outputs(args)
     _check_settings(args)
-    from jaxarm.optim import pso
+    from jaxarm.optim.methods import search_variant
 
-    pso.resolve(args.method)  # a PSO method, checked before the scenario is loaded
+    search_variant(args.method, args.constraint)  # checked before the scenario is loaded
     problem = _load(args)
     limits = _timing_limits(args, problem)
     from jaxarm import plot
@@ -378,11 +381,12 @@ def _study(args) -> None:
     from jaxarm import plot
     from jaxarm.study import escape_study, parse_variants
 
-    parse_variants(methods, args.constraint)  # names checked before any compilation
-    result = escape_study(problem, methods, n_seeds=args.seeds, n_iters=args.iters,
-                          n_particles=args.particles, constraint=args.constraint, seed=args.seed,
+    constraint = args.constraint or "death"
+    parse_variants(methods, constraint)  # names checked before any compilation
+    result = escape_study(problem, methods, n_restarts=args.restarts, n_iters=args.iters,
+                          n_particles=args.particles, constraint=constraint, seed=args.seed,
                           chunk_size=args.chunk_size)
-    print(f"{problem.name}: {args.seeds} seeds x {args.particles} particles x {args.iters} "
+    print(f"{problem.name}: {args.restarts} restarts x {args.particles} particles x {args.iters} "
           f"iterations, {problem.collision} collision check")
     print(result.table(pairwise=args.pairwise))
     for path, text in ((args.json, result.to_json), (args.csv, result.to_csv)):
@@ -398,8 +402,8 @@ def _reproduce(args) -> None:
     from jaxarm.paper.report import reproduce_paper
 
     suite = [name.strip() for name in args.suite.split(",")] if args.suite else None
-    reproduce_paper(args.out, quick=args.quick, n_seeds=args.seeds, suite=suite,
-                    suite_seeds=args.suite_seeds, degrees=args.degrees, workers=args.workers)
+    reproduce_paper(args.out, quick=args.quick, n_restarts=args.restarts, suite=suite,
+                    suite_restarts=args.suite_restarts, degrees=args.degrees, workers=args.workers)
 
 
 COMMANDS = {"scenarios": _scenarios, "solve": _solve, "study": _study,

@@ -11,20 +11,21 @@ from typing import NamedTuple
 
 import numpy as np
 
+from jaxarm._compile.padding import in_blocks
 from jaxarm._validate import positive_int
 from jaxarm.checks.evaluate import violation
 from jaxarm.model.problem import Problem
 from jaxarm.stats import wilson_interval
 
-CHUNK = 4096  # paths per compiled call
+BLOCK = 4096  # paths per compiled call
 
 
 class FeasibleFraction(NamedTuple):
-    """The collision-free share of the init range, from ``n_samples`` uniform paths."""
+    """The collision-free share of the init range, from ``n_paths`` uniform paths."""
 
     fraction: float
     interval: tuple[float, float]  # 95 % Wilson interval
-    n_samples: int
+    n_paths: int
 
     def start_escape(self, n_particles: int) -> tuple[float, tuple[float, float]]:
         """Predicted probability that a swarm of ``n_particles`` uniform particles already
@@ -34,14 +35,14 @@ class FeasibleFraction(NamedTuple):
         return predict(self.fraction), (predict(self.interval[0]), predict(self.interval[1]))
 
 
-def feasible_fraction(problem: Problem, n_samples: int = 10_000, seed: int = 0
+def feasible_fraction(problem: Problem, n_paths: int = 10_000, seed: int = 0
                       ) -> FeasibleFraction:
     """The share of the init range whose paths are collision-free in the problem's collision
-    mode (and margin), estimated from ``n_samples`` uniform draws.
+    mode (and margin), estimated from ``n_paths`` uniform draws.
 
     Args:
       problem: the problem; its ``bounds()`` are the box sampled.
-      n_samples: paths drawn (float64 NumPy ``default_rng(seed)``, then checked in chunks).
+      n_paths: paths drawn (float64 NumPy ``default_rng(seed)``, then checked in blocks).
       seed: the draw's seed.
 
     Returns:
@@ -51,15 +52,11 @@ def feasible_fraction(problem: Problem, n_samples: int = 10_000, seed: int = 0
       >>> jaxarm.feasible_fraction(jaxarm.load_scenario("open-space"), 100).fraction
       1.0
     """
-    n_samples = positive_int("n_samples", n_samples)
+    n_paths = positive_int("n_paths", n_paths)
     low, high = problem.bounds()
-    x = np.random.default_rng(seed).uniform(low, high, size=(n_samples, problem.n_free))
-    free = 0
-    chunk = min(CHUNK, n_samples)
-    padded = np.concatenate([x, np.repeat(x[:1], -n_samples % chunk, axis=0)])
-    for start in range(0, n_samples, chunk):  # one program: every call has ``chunk`` paths
-        keep = min(chunk, n_samples - start)
-        free += int(np.sum(np.asarray(violation(problem, padded[start:start + chunk]))[:keep]
-                           == 0))
-    return FeasibleFraction(fraction=free / n_samples,
-                            interval=wilson_interval(free, n_samples), n_samples=n_samples)
+    x = np.random.default_rng(seed).uniform(low, high, size=(n_paths, problem.n_free))
+    # one program: every call has as many paths (``in_blocks``)
+    free = int(np.sum(in_blocks(lambda rows: np.asarray(violation(problem, rows)), x,
+                                min(BLOCK, n_paths)) == 0))
+    return FeasibleFraction(fraction=free / n_paths, interval=wilson_interval(free, n_paths),
+                            n_paths=n_paths)

@@ -161,7 +161,7 @@ def plot_escape_rates(study, ax=None, title: str | None = None):
                        for r in dict.fromkeys(rules)], fontsize=8, loc="upper left",
               bbox_to_anchor=(1.0, 1.0))  # beside the axes: bars reach 1.0 on either side
     ax.set_title(title or f"{study.problem_name}: escape within {study.n_iters} iterations "
-                          f"({study.methods[0].n_seeds} seeds)")
+                          f"({study.methods[0].n_restarts} seeds)")
     return figure
 
 
@@ -174,8 +174,8 @@ def plot_escape_curves(study, ax=None, title: str | None = None):
     iterations = np.arange(study.n_iters + 1)
     for method in study.methods:
         curve = method.escape_curve()
-        counts = np.rint(curve * method.n_seeds).astype(int)
-        band = np.array([wilson_interval(int(k), method.n_seeds) for k in counts])
+        counts = np.rint(curve * method.n_restarts).astype(int)
+        band = np.array([wilson_interval(int(k), method.n_restarts) for k in counts])
         (line,) = ax.step(iterations, curve, where="post", label=method.variant.label)
         ax.fill_between(iterations, band[:, 0], band[:, 1], step="post", alpha=0.2, lw=0,
                         color=line.get_color())
@@ -184,7 +184,7 @@ def plot_escape_curves(study, ax=None, title: str | None = None):
     ax.set_ylabel("fraction escaped (95 % band)")
     ax.legend(fontsize=8)
     ax.set_title(title or f"{study.problem_name}: escape by iteration "
-                          f"({study.methods[0].n_seeds} seeds)")
+                          f"({study.methods[0].n_restarts} seeds)")
     return figure
 
 

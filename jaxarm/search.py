@@ -13,6 +13,7 @@ from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import certify
 from jaxarm.model.problem import Problem
 from jaxarm.optim import evosax_adapter, pso
+from jaxarm.optim.methods import search_variant
 from jaxarm.optim.restarts import N_ITERS, N_PARTICLES, RestartOutcome, run_restarts
 
 
@@ -43,8 +44,8 @@ class Result(NamedTuple):
     best_restart: int  # index of the best restart (``RestartOutcome.best_restart``)
     certified: bool  # best_x proved free for every r by ``jaxarm.certify``
     pso_best_fitness: float  # best_fitness before refinement (equal when refine=False)
-    method: str  # preset name or "custom"
-    config: pso.PSOConfig
+    method: str  # the method's name without its rule ("A", "A-ring", "evosax:CMA_ES"), or "custom"
+    config: pso.PSOConfig | evosax_adapter.StrategyConfig
     constraint: str
     collision: str  # the collision mode the search used
     seed: int
@@ -164,7 +165,7 @@ def _plain(array) -> list:
 
 def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
           n_particles: int = N_PARTICLES, n_iters: int = N_ITERS, n_restarts: int = 1,
-          seed: int = 0, constraint: str = "death", init_particles=None,
+          seed: int = 0, constraint: str | None = None, init_particles=None,
           refine: bool | str = False) -> Result:
     """Search the problem's free coefficients with PSO, ``n_restarts`` independent swarms at once.
 
@@ -173,16 +174,18 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
 
     Args:
       problem: the problem.
-      method: "A", "B", "C" (the paper's Table 2 presets), "A-ring" and the other names
-        ``pso.resolve`` takes ("A-ring[inertia_end=0.4]": fields changed in brackets), a
-        ``PSOConfig``, or an evosax strategy, ``"evosax:CMA_ES"`` (``jaxarm.optim.evosax_adapter``;
-        optional dependency).
+      method: a method name (``jaxarm.optim.methods``): "A", "B", "C" (the paper's Table 2
+        presets), "A-ring", "A-ring[inertia_end=0.4]" (fields changed in brackets), an
+        evosax strategy "evosax:CMA_ES" (optional dependency), each optionally followed by
+        ":<constraint>" ("A:feasibility"); or a ``PSOConfig``.
       n_particles: swarm size (paper: 20).
       n_iters: PSO updates (paper: 100); iteration 0 is the initial swarm.
       n_restarts: independent swarms.
       seed: integer seed in [0, 2**31).
       constraint: "death" (paper eq. 17), "feasibility" (feasibility rules), "epsilon" or
-        "penalty" (``jaxarm.optim.constraints``).
+        "penalty" (``jaxarm.optim.constraints``); default: the rule ``method`` names, else
+        "death". ``solve(p, "A:feasibility")`` is ``solve(p, "A", constraint="feasibility")``;
+        a method that names another rule than ``constraint`` is a ValueError.
       init_particles: optional particles, shape (n_given, n_free), put at the start of every
         restart's initial swarm (paper Table 6).
       refine: polish with ``jaxarm.refine`` after PSO: False, True (the best restart) or
@@ -197,10 +200,10 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
       True
     """
     began = time.perf_counter()
-    config = evosax_adapter.resolve_method(method)
-    evosax_adapter.check_constraint(config, constraint, method_label(method))
+    variant = search_variant(method, constraint)
+    config, constraint = variant.config, variant.constraint
     if isinstance(config, evosax_adapter.StrategyConfig) and init_particles is not None:
-        raise ValueError(f"init_particles: {method_label(method)} starts from its own "
+        raise ValueError(f"init_particles: {variant.name} starts from its own "
                          "population; give init_particles to a PSO method")
     check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint)
     n_restarts = positive_int("n_restarts", n_restarts)
@@ -217,16 +220,9 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
     certified = feasible and (problem.collision == "certified"
                               or bool(certify(problem, outcome.best_x[best]).free))
     return Result(restarts=outcome, best_restart=best, certified=certified,
-                  pso_best_fitness=pso_best, method=method_label(method), config=config,
+                  pso_best_fitness=pso_best, method=variant.name, config=config,
                   constraint=constraint, collision=problem.collision, seed=int(seed),
                   seconds=time.perf_counter() - began)
-
-
-def method_label(method) -> str:
-    """A preset's or strategy's name, or "custom" for a ``PSOConfig``."""
-    if isinstance(method, evosax_adapter.StrategyConfig):
-        return evosax_adapter.PREFIX + method.strategy
-    return method if isinstance(method, str) else "custom"
 
 
 def _refined(problem, outcome: RestartOutcome, every: bool) -> RestartOutcome:

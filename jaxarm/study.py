@@ -18,9 +18,9 @@ import numpy as np
 
 from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import fitness
-from jaxarm.choices import CONSTRAINTS, one_of
 from jaxarm.model.problem import Problem
 from jaxarm.optim import evosax_adapter, pso
+from jaxarm.optim.methods import Variant, parse_method
 from jaxarm.optim.restarts import (
     N_ITERS,
     N_PARTICLES,
@@ -31,19 +31,10 @@ from jaxarm.optim.restarts import (
 from jaxarm.stats import Comparison, fisher_exact, newcombe_interval, wilson_interval
 
 
-class Variant(NamedTuple):
-    """One row of a study: a PSO configuration (or an evosax strategy) under a constraint rule,
-    and its label."""
-
-    label: str  # e.g. "A", "A:feasibility", "custom", "custom-2", "evosax:CMA_ES"
-    config: pso.PSOConfig  # or ``evosax_adapter.StrategyConfig``
-    constraint: str
-
-
 def parse_variants(methods: Sequence, constraint: str) -> list[Variant]:
-    """Study rows from ``"A"``, ``"A:feasibility"``, ``"A-ring[inertia_end=0.4]:feasibility"``
-    (``pso.resolve``'s names), ``"evosax:CMA_ES"`` (any evosax strategy,
-    ``jaxarm.optim.evosax_adapter``; death or feasibility only), ``PSOConfig``s or ``Variant``s.
+    """Study rows from method names (``jaxarm.optim.methods``: ``"A"``, ``"A:feasibility"``,
+    ``"A-ring[inertia_end=0.4]:feasibility"``, ``"evosax:CMA_ES"``), ``PSOConfig``s or
+    ``Variant``s.
 
     Entries that name no constraint get ``constraint``. A ``PSOConfig`` is labelled "custom",
     the next ones "custom-2", "custom-3", ...; a ``Variant`` keeps its own label. Labels must
@@ -53,29 +44,10 @@ def parse_variants(methods: Sequence, constraint: str) -> list[Variant]:
         methods = [methods]  # one method, not its characters or fields
     variants, n_custom = [], 0
     for method in methods:
-        if isinstance(method, Variant):
-            one_of("constraint", method.constraint, CONSTRAINTS)
-            variant = method._replace(config=evosax_adapter.resolve_method(method.config))
-        else:
-            if isinstance(method, evosax_adapter.StrategyConfig):
-                config, rule = method.validate(), one_of("constraint", constraint, CONSTRAINTS)
-                name = evosax_adapter.PREFIX + config.strategy
-            elif evosax_adapter.is_strategy(method):  # "evosax:CMA_ES", "evosax:CMA_ES:feasibility"
-                strategy, colon, rule = method[len(evosax_adapter.PREFIX):].partition(":")
-                rule = one_of("constraint", rule if colon else constraint, CONSTRAINTS)
-                name = evosax_adapter.PREFIX + strategy
-                config = evosax_adapter.resolve(name)
-            elif isinstance(method, str):
-                name, colon, rule = method.partition(":")
-                rule = one_of("constraint", rule if colon else constraint, CONSTRAINTS)
-                config = pso.resolve(name)
-            else:
-                rule = one_of("constraint", constraint, CONSTRAINTS)
-                config = pso.resolve(method)
-                n_custom += 1
-                name = "custom" if n_custom == 1 else f"custom-{n_custom}"
-            variant = Variant(name if rule == "death" else f"{name}:{rule}", config, rule)
-        evosax_adapter.check_constraint(variant.config, variant.constraint, variant.label)
+        custom = isinstance(method, pso.PSOConfig)
+        n_custom += custom
+        variant = parse_method(method, constraint,
+                               custom_label="custom" if n_custom <= 1 else f"custom-{n_custom}")
         if any(v.label == variant.label for v in variants):
             raise ValueError(f"methods must have unique labels, got {variant.label!r} twice")
         variants.append(variant)
@@ -88,24 +60,24 @@ class MethodStudy(NamedTuple):
     """Per-restart outcomes of one variant over a study's seeds, and their summaries."""
 
     variant: Variant
-    restarts: np.ndarray  # shape=(n_seeds,), the restart index of each row
-    outcome: RestartOutcome  # NumPy arrays with leading axis n_seeds
+    restart_ids: np.ndarray  # shape=(n_restarts,), the restart index of each row
+    outcome: RestartOutcome  # NumPy arrays with leading axis n_restarts
     seconds: float  # wall time, compilation included
 
     @property
-    def n_seeds(self) -> int:
-        return int(self.restarts.shape[0])
+    def n_restarts(self) -> int:
+        return int(self.restart_ids.shape[0])
 
     @property
     def escaped(self) -> np.ndarray:
-        """Shape (n_seeds,), bool: the swarm found a feasible path at some iteration."""
+        """Shape (n_restarts,), bool: the swarm found a feasible path at some iteration."""
         return self.outcome.escape_iter >= 0
 
     def escape_rate(self) -> float:
         return float(self.escaped.mean())
 
     def escape_interval(self) -> tuple[float, float]:
-        return wilson_interval(int(self.escaped.sum()), self.n_seeds)
+        return wilson_interval(int(self.escaped.sum()), self.n_restarts)
 
     def start_escape_rate(self) -> float:
         """Share of seeds whose initial swarm already holds a feasible path (iteration 0);
@@ -131,7 +103,7 @@ class MethodStudy(NamedTuple):
             "method": self.variant.label,
             "velocity_rule": self.variant.config.velocity_rule,
             "constraint": self.variant.constraint,
-            "n_seeds": self.n_seeds,
+            "n_restarts": self.n_restarts,
             "escaped": int(self.escaped.sum()),
             "escape_rate": self.escape_rate(),
             "ci95_low": low,
@@ -156,7 +128,8 @@ class Study(NamedTuple):
     seed: int
     methods: tuple[MethodStudy, ...]
 
-    def __getitem__(self, label: str) -> MethodStudy:  # study["A"]; fields by name only
+    def method(self, label: str) -> MethodStudy:
+        """The ``MethodStudy`` of the method labelled ``label`` ("A", "A:feasibility", ...)."""
         for method in self.methods:
             if method.variant.label == label:
                 return method
@@ -167,9 +140,9 @@ class Study(NamedTuple):
         """Escape rate of method ``a`` minus that of ``b``: the difference, its 95 % Newcombe
         interval and the two-sided Fisher exact p-value (same seeds, counted as independent
         samples)."""
-        first, second = self[a], self[b]
-        counts = (int(first.escaped.sum()), first.n_seeds, int(second.escaped.sum()),
-                  second.n_seeds)
+        first, second = self.method(a), self.method(b)
+        counts = (int(first.escaped.sum()), first.n_restarts, int(second.escaped.sum()),
+                  second.n_restarts)
         return Comparison(a=a, b=b, difference=first.escape_rate() - second.escape_rate(),
                           interval=newcombe_interval(*counts), p_value=fisher_exact(*counts))
 
@@ -190,7 +163,7 @@ class Study(NamedTuple):
         for method in self.methods:
             s = method.summary()
             lines.append(
-                f"| {s['method']} | {s['constraint']} | {s['escaped']}/{s['n_seeds']} | "
+                f"| {s['method']} | {s['constraint']} | {s['escaped']}/{s['n_restarts']} | "
                 f"{s['escape_rate']:.1%} [{s['ci95_low']:.1%}, {s['ci95_high']:.1%}] | "
                 f"{fmt(s['escape_iter_median'], '.0f')} [{fmt(s['escape_iter_q1'], '.0f')}, "
                 f"{fmt(s['escape_iter_q3'], '.0f')}] | {fmt(s['fitness_median'], '.4f')} / "
@@ -222,13 +195,13 @@ class Study(NamedTuple):
         """Tidy per-seed rows: one per (method, seed)."""
         rows = []
         for m in self.methods:
-            for i in range(m.n_seeds):
+            for i in range(m.n_restarts):
                 rows.append({
                     "problem": self.problem_name,
                     "method": m.variant.label,
                     "constraint": m.variant.constraint,
                     "seed": self.seed,
-                    "restart": int(m.restarts[i]),
+                    "restart": int(m.restart_ids[i]),
                     "escaped": bool(m.escaped[i]),
                     "escape_iter": int(m.outcome.escape_iter[i]),
                     "best_fitness": float(m.outcome.best_fitness[i]),
@@ -247,17 +220,17 @@ class Study(NamedTuple):
         return out.getvalue()
 
 
-def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_seeds: int = 500,
+def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_restarts: int = 500,
                  n_iters: int = N_ITERS, n_particles: int = N_PARTICLES, constraint: str = "death",
                  seed: int = 0, chunk_size: int = 500, progress: bool | None = None) -> Study:
-    """How often each method escapes zero fitness, over ``n_seeds`` independent seeds.
+    """How often each method escapes zero fitness, over ``n_restarts`` independent seeds.
 
     Args:
       problem: the problem.
       methods: entries "A", "B", "C", "A:feasibility" (method:constraint),
         "A-ring[inertia_end=0.4]:feasibility" (``pso.resolve``'s names), ``PSOConfig``s or
         ``Variant``s (see ``parse_variants``); labels must be unique.
-      n_seeds: seeds (restarts) per method; the same restart indices for every method.
+      n_restarts: seeds (restarts) per method; the same restart indices for every method.
       n_iters, n_particles: PSO sizes (paper: 100 and 20).
       constraint: the constraint rule for entries that do not name one.
       seed: base seed; seed i of the study is restart i of ``solve(problem, seed=seed)``.
@@ -272,27 +245,27 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_see
     """
     variants = parse_variants(methods, constraint)
     check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint)
-    n_seeds = positive_int("n_seeds", n_seeds)
+    n_restarts = positive_int("n_restarts", n_restarts)
     chunk_size = positive_int("chunk_size", chunk_size)
     if progress is None:
         progress = sys.stderr.isatty()
-    bar = _progress_bar(len(variants) * n_seeds, problem.name, progress)
-    size = chunk_length(n_seeds, chunk_size)
+    bar = _progress_bar(len(variants) * n_restarts, problem.name, progress)
+    size = chunk_length(n_restarts, chunk_size)
     results = []
     for variant in variants:
         bar.set_description(f"{problem.name} {variant.label}")
         began = time.perf_counter()
         parts = []
-        for start in range(0, n_seeds, size):
+        for start in range(0, n_restarts, size):
             compiling = not is_compiled(problem, variant.config, n_particles, n_iters, size)
             bar.set_postfix_str("compiling" if compiling else "")
             # every chunk runs ``size`` restarts (one program); the last keeps what it needs
-            keep = min(size, n_seeds - start)
+            keep = min(size, n_restarts - start)
             outcome = run_restarts(problem, variant.config, variant.constraint, n_particles,
                                    n_iters, seed, start, size)
             parts.append(RestartOutcome(*(field[:keep] for field in outcome)))
             bar.update(keep)
-        results.append(MethodStudy(variant=variant, restarts=np.arange(n_seeds),
+        results.append(MethodStudy(variant=variant, restart_ids=np.arange(n_restarts),
                                    outcome=parts[0].concatenate(*parts[1:]),
                                    seconds=time.perf_counter() - began))
     bar.close()

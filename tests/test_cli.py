@@ -94,7 +94,7 @@ def test_cli_solve_times_the_best_path_and_exports_it(capsys, tmp_path):
 
 
 def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
-    code, out, _ = run_cli(capsys, "study", "paper-case-2", *SEARCH_SIZES, "--seeds", "4",
+    code, out, _ = run_cli(capsys, "study", "paper-case-2", *SEARCH_SIZES, "--restarts", "4",
                            "--methods", "A,A:epsilon,A[social_coeff=2,inertia_end=0.5]",
                            "--pairwise",
                            "--json", str(tmp_path / "s.json"), "--csv", str(tmp_path / "s.csv"),
@@ -116,7 +116,9 @@ def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
         (["study", "paper-case-2", "--methods", "A,A[foo=1]"], "must be FIELD=VALUE"),
         (["solve", "paper-case-2", "--method", "A-ring[inertia_end=x]"],
          "inertia_end must be a number, got 'x'"),
-        (["solve", "paper-case-2", "--method", "evosax:DE"], "method must be one of"),
+        (["solve", "paper-case-2", "--method", "A:feasibility", "--constraint", "death"],
+         "method 'A:feasibility' names constraint 'feasibility' but constraint='death'"),
+        (["solve", "paper-case-2", "--method", "A:nope"], "constraint must be one of"),
         (["solve", "paper-case-2", "--seed", "-3"], "seed must be an integer"),
         (["study", "paper-case-2", "--methods", "A,A"], "unique labels, got 'A' twice"),
         (["solve", "paper-case-2", "--samples", "50"], "--samples: n_samples must be odd"),

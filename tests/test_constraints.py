@@ -13,7 +13,7 @@ from jaxarm.optim.constraints import Measured
 OBJECTIVE = jnp.array([0.10, 0.20, 0.50, 0.40, 0.30])
 VIOLATION = jnp.array([0.0, 0.0, 1.0, 2.0, 4.0])
 MEASURED = Measured(objective=OBJECTIVE, fitness=jnp.where(VIOLATION == 0, OBJECTIVE, 0.0),
-                    violation=VIOLATION, reported_violation=VIOLATION)
+                    ranked_violation=VIOLATION, violation=VIOLATION)
 N_ITERS = 100
 
 
@@ -31,7 +31,7 @@ def test_epsilon_level_starts_at_the_quantile_and_reaches_zero_at_half_the_run()
     state = constraints.initial_state(MEASURED)
     # the 20 % quantile of the sorted violations [0, 0, 1, 2, 4]: index int(0.2 * 4) = 0
     assert float(state.epsilon0) == 0.0
-    wider = constraints.initial_state(MEASURED._replace(violation=VIOLATION + 1.0))
+    wider = constraints.initial_state(MEASURED._replace(ranked_violation=VIOLATION + 1.0))
     assert float(wider.epsilon0) == 1.0
     levels = [float(constraints.epsilon_level(wider, t, N_ITERS)) for t in range(N_ITERS + 1)]
     assert levels[0] == 1.0 and levels[25] == pytest.approx(0.5 ** 5)
@@ -60,7 +60,7 @@ def test_penalty_rule_subtracts_lambda_times_violation_and_lambda_adapts():
     for _ in range(40):  # doubling stops at 1e6 lambda(0): finite, so 0 * lambda stays 0
         up = constraints.updated_state(up, jnp.bool_(False))
     assert float(up.penalty) == pytest.approx(1e6 * balanced, rel=1e-6)
-    free = constraints.initial_state(MEASURED._replace(violation=jnp.zeros(5)))
+    free = constraints.initial_state(MEASURED._replace(ranked_violation=jnp.zeros(5)))
     assert float(free.penalty) == 1.0  # no colliding particle: nothing to balance
 
 
@@ -81,7 +81,7 @@ def test_the_swarm_scores_every_personal_best_under_the_rule_of_the_moment():
         expected = constraints.score("epsilon", state.rule, state.best, t, 20)
         np.testing.assert_array_equal(np.asarray(state.best_score), np.asarray(expected))
         assert int(state.global_index) == int(np.argmax(np.asarray(state.best_score)))
-    assert float(state.best.violation[state.global_index]) == 0.0  # epsilon is 0 by then
+    assert float(state.best.ranked_violation[state.global_index]) == 0.0  # epsilon is 0 by then
 
 
 def test_ring_topology_follows_the_best_of_each_particles_neighbours():
@@ -104,9 +104,9 @@ def test_new_rules_and_the_ring_run_everywhere_and_repeat_bit_for_bit(case2, rul
     one = jaxarm.solve(case2, ring, n_restarts=5, constraint=rule, **small)
     again = jaxarm.solve(case2, ring, n_restarts=9, constraint=rule, **small)
     np.testing.assert_array_equal(one.restarts.best_x, again.restarts.best_x[:5])
-    studied = jaxarm.escape_study(case2, [f"A:{rule}"], n_seeds=5, **small)
+    studied = jaxarm.escape_study(case2, [f"A:{rule}"], n_restarts=5, **small)
     plain = jaxarm.solve(case2, "A", n_restarts=5, constraint=rule, **small)
-    np.testing.assert_array_equal(studied[f"A:{rule}"].outcome.best_x, plain.restarts.best_x)
+    np.testing.assert_array_equal(studied.method(f"A:{rule}").outcome.best_x, plain.restarts.best_x)
     # the reported fitness is the paper's whatever the rule: 1 / distance of free paths
     fitness = jaxarm.fitness(case2, plain.restarts.best_x)
     np.testing.assert_allclose(plain.restarts.best_fitness, fitness, rtol=1e-6)

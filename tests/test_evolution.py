@@ -6,15 +6,19 @@ import numpy as np
 import pytest
 
 import jaxarm
-from jaxarm import study
+from jaxarm import cli, study
 from jaxarm.optim import evosax_adapter
 
 
-def test_a_missing_evosax_says_how_to_install_it(monkeypatch):
+def test_a_missing_evosax_says_how_to_install_it(monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "evosax", None)  # import evosax now fails
     with pytest.raises(ValueError, match=r"evosax methods need evosax: pip install "
                                          r"'jaxarm\[bench\]'"):
         study.parse_variants(["A", "evosax:CMA_ES"], "death")
+    for argv in (["solve", "paper-case-2", "--method", "evosax:DE"],
+                 ["study", "paper-case-2", "--methods", "A,evosax:DE"]):
+        assert cli.main(argv) == 2  # one line, the same advice, from both commands
+        assert "evosax methods need evosax: pip install" in capsys.readouterr().err
 
 
 @pytest.fixture(scope="module")
@@ -24,10 +28,10 @@ def problem():
 
 
 def test_strategies_record_escape_and_fitness_like_the_pso(problem):
-    result = study.escape_study(problem, ["evosax:CMA_ES", "evosax:DE:feasibility"], n_seeds=8,
+    result = study.escape_study(problem, ["evosax:CMA_ES", "evosax:DE:feasibility"], n_restarts=8,
                                 n_particles=8, n_iters=15)
     for label in ("evosax:CMA_ES", "evosax:DE:feasibility"):
-        outcome = result[label].outcome
+        outcome = result.method(label).outcome
         assert outcome.history.shape == (8, 16)
         fitness = np.asarray(jaxarm.fitness(problem, np.float32(outcome.best_x)))
         np.testing.assert_allclose(outcome.best_fitness, fitness, rtol=1e-6)
@@ -37,7 +41,7 @@ def test_strategies_record_escape_and_fitness_like_the_pso(problem):
                 assert np.all(history[:escape] == 0) and history[escape] > 0
             else:
                 assert np.all(history == 0)
-    assert result["evosax:DE:feasibility"].outcome.escape_iter.max() >= 0  # some escape
+    assert result.method("evosax:DE:feasibility").outcome.escape_iter.max() >= 0  # some escape
 
 
 def test_a_restart_does_not_depend_on_the_restarts_beside_it(problem):

@@ -11,7 +11,7 @@ from jaxarm.model.arm import joint_positions
 
 def test_plots_produce_non_empty_pngs(tmp_path, case2):
     result = jaxarm.solve(case2, "A", n_restarts=4, **SMALL)
-    escape = study.escape_study(case2, ["A", "A:feasibility"], n_seeds=4, **SMALL)
+    escape = study.escape_study(case2, ["A", "A:feasibility"], n_restarts=4, **SMALL)
     figures = {
         "motion": plot.plot_motion(case2, result.best_x),
         "joints": plot.plot_joint_angles(case2, result.best_x),
@@ -38,7 +38,7 @@ def test_figures_explain_themselves(tmp_path, case2):
     assert {"start", "goal", "end-effector", "base"} <= set(legend)
     assert ax.get_xlabel() == "x (cm)" and ax.get_ylabel() == "y (cm)"
     escape = study.escape_study(case2, ["A", "A:feasibility", "B", "C:feasibility", "A:epsilon",
-                                        "A:penalty"], n_seeds=3, **SMALL)
+                                        "A:penalty"], n_restarts=3, **SMALL)
     ax = plot.plot_escape_rates(escape).axes[0]
     assert [t.get_text() for t in ax.get_legend().get_texts()] == [
         "death penalty", "feasibility rules", "epsilon-constrained", "adaptive penalty"]

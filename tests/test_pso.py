@@ -27,8 +27,8 @@ def sphere(x):
     """Maximise -|x - 0.3|^2; feasible where x[0] > 0.5."""
     fitness = -jnp.sum((x - 0.3) ** 2, axis=-1)
     violation = jnp.where(x[:, 0] > 0.5, 0.0, 1.0)
-    return Measured(objective=fitness, fitness=fitness, violation=violation,
-                    reported_violation=violation)
+    return Measured(objective=fitness, fitness=fitness, ranked_violation=violation,
+                    violation=violation)
 
 
 def test_presets_are_the_papers_table_2():
@@ -100,8 +100,8 @@ def test_personal_and_global_bests_follow_strict_improvement():
 
 def all_infeasible(x):
     zero = jnp.zeros(x.shape[0])
-    return Measured(objective=zero, fitness=zero, violation=zero + 1.0,
-                    reported_violation=zero + 1.0)
+    return Measured(objective=zero, fitness=zero, ranked_violation=zero + 1.0,
+                    violation=zero + 1.0)
 
 
 def test_all_infeasible_death_penalty_keeps_particle_zero_as_global_best():
@@ -132,8 +132,8 @@ def test_nan_and_inf_never_become_a_best():
         fitness = jnp.where(x[:, 0] > 0, jnp.nan, -jnp.sum(x**2, axis=-1))
         fitness = fitness.at[1].set(jnp.inf)
         violation = jnp.where(jnp.isfinite(fitness), 0.0, 1.0)
-        return Measured(objective=fitness, fitness=fitness, violation=violation,
-                        reported_violation=violation)
+        return Measured(objective=fitness, fitness=fitness, ranked_violation=violation,
+                        violation=violation)
 
     config = pso.PSOConfig("original", 2.0, 2.0, init_velocity=5.0)  # diverges quickly
     swarm = make_swarm(config, poisoned, n_particles=PARTICLES, n_iters=30)

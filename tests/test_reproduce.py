@@ -27,8 +27,8 @@ def run_cli(capsys, *argv):
 
 @pytest.mark.slow
 def test_cli_reproduce_paper_writes_a_report_with_every_table(capsys, tmp_path):
-    code, out, _ = run_cli(capsys, "reproduce-paper", "--out", str(tmp_path), "--seeds", "8",
-                           "--suite", "paper-case-2,open-space", "--suite-seeds", "4",
+    code, out, _ = run_cli(capsys, "reproduce-paper", "--out", str(tmp_path), "--restarts", "8",
+                           "--suite", "paper-case-2,open-space", "--suite-restarts", "4",
                            "--degrees", "6")
     assert code == 0 and "report written" in out
     stages = [line for line in out.splitlines() if re.match(r"\[\d/5, ", line)]

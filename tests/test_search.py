@@ -60,11 +60,30 @@ def test_certified_search_returns_certified_paths(case2):
         (dict(n_particles=1), r"n_particles must be >= 2, got 1"),
         (dict(n_restarts=2.5), r"n_restarts must be an integer, got 2.5"),
         (dict(seed=-1), r"seed must be an integer in \[0, 2\*\*31\), got -1"),
+        (dict(method="A:feasibility", constraint="epsilon"),
+         r"method 'A:feasibility' names constraint 'feasibility' but constraint='epsilon'"),
+        (dict(method="A:"), r"constraint must be one of .* got ''"),
     ],
 )
 def test_bad_solve_arguments(case2, kwargs, message):
     with pytest.raises(ValueError, match=message):
         jaxarm.solve(case2, **kwargs)
+
+
+def test_a_method_may_name_its_rule_as_studies_do(case2):
+    """``solve(p, "A:feasibility")`` is ``solve(p, "A", constraint="feasibility")``, restart for
+    restart, and restart i of ``escape_study(p, ["A:feasibility"])``."""
+    sizes = dict(n_particles=6, n_iters=8, n_restarts=3, seed=2)
+    named = jaxarm.solve(case2, "A:feasibility", **sizes)
+    keyword = jaxarm.solve(case2, "A", constraint="feasibility", **sizes)
+    both = jaxarm.solve(case2, "A:feasibility", constraint="feasibility", **sizes)
+    for other in (keyword, both):
+        np.testing.assert_array_equal(named.restarts.best_x, other.restarts.best_x)
+    assert (named.method, named.constraint) == ("A", "feasibility")
+    study = jaxarm.escape_study(case2, ["A:feasibility"], n_restarts=3, n_particles=6,
+                                n_iters=8, seed=2)
+    np.testing.assert_array_equal(study.method("A:feasibility").outcome.best_x,
+                                  named.restarts.best_x)
 
 
 def test_feasible_results_are_collision_free_by_shapely(case2):

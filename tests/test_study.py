@@ -11,15 +11,15 @@ from jaxarm import stats, study
 
 
 def test_study_is_reproducible_and_chunking_does_not_matter(case2):
-    one = study.escape_study(case2, ["A", "B:feasibility"], n_seeds=10, chunk_size=10, **SMALL)
-    chunked = study.escape_study(case2, ["A", "B:feasibility"], n_seeds=10, chunk_size=4,
+    one = study.escape_study(case2, ["A", "B:feasibility"], n_restarts=10, chunk_size=10, **SMALL)
+    chunked = study.escape_study(case2, ["A", "B:feasibility"], n_restarts=10, chunk_size=4,
                                  **SMALL)
     for a, b in zip(one.methods, chunked.methods):
         np.testing.assert_array_equal(a.outcome.escape_iter, b.outcome.escape_iter)
         np.testing.assert_array_equal(a.outcome.best_x, b.outcome.best_x)
     # seed i of a study is restart i of solve with the same seed
     result = jaxarm.solve(case2, "A", n_restarts=10, **SMALL)
-    np.testing.assert_array_equal(one["A"].outcome.best_x, result.restarts.best_x)
+    np.testing.assert_array_equal(one.method("A").outcome.best_x, result.restarts.best_x)
 
 
 @pytest.mark.parametrize("n, limit, length", [(10, 4, 4), (1000, 500, 500), (1001, 500, 334),
@@ -29,8 +29,8 @@ def test_chunk_length_splits_the_seeds_into_the_fewest_near_equal_chunks(n, limi
 
 
 def test_compare_gives_the_difference_its_newcombe_interval_and_fishers_p(case2):
-    result = study.escape_study(case2, ["A", "A:feasibility", "C"], n_seeds=12, **SMALL)
-    a, b = result["A:feasibility"], result["A"]
+    result = study.escape_study(case2, ["A", "A:feasibility", "C"], n_restarts=12, **SMALL)
+    a, b = result.method("A:feasibility"), result.method("A")
     comparison = result.compare("A:feasibility", "A")
     counts = (int(a.escaped.sum()), 12, int(b.escaped.sum()), 12)
     assert comparison.difference == pytest.approx(a.escape_rate() - b.escape_rate())
@@ -68,7 +68,7 @@ def test_progress_moves_per_chunk_and_says_when_it_compiles(case2, monkeypatch):
     bar = RecordingBar()
     monkeypatch.setattr(study, "_progress_bar", lambda total, label, enabled: bar)
     sizes = dict(n_particles=5, n_iters=7)  # a program no other test compiles
-    study.escape_study(case2, ["A", "C"], n_seeds=9, chunk_size=5, progress=True, **sizes)
+    study.escape_study(case2, ["A", "C"], n_restarts=9, chunk_size=5, progress=True, **sizes)
     # two chunks of 5 and 4 seeds, one program: A compiles it, C (same rules) reuses it
     assert bar.events == [
         ("label", "paper-case-2 A"), ("postfix", "compiling"), ("update", 5),
@@ -76,20 +76,20 @@ def test_progress_moves_per_chunk_and_says_when_it_compiles(case2, monkeypatch):
         ("label", "paper-case-2 C"), ("postfix", ""), ("update", 5),
         ("postfix", ""), ("update", 4), ("close",)]
     bar.events.clear()
-    study.escape_study(case2, ["B:feasibility"], n_seeds=9, chunk_size=5, progress=True,
+    study.escape_study(case2, ["B:feasibility"], n_restarts=9, chunk_size=5, progress=True,
                        **sizes)
     assert ("postfix", "compiling") not in bar.events  # the constraint rule is data
     bar.events.clear()
-    study.escape_study(case2, ["A"], n_seeds=9, chunk_size=9, progress=True, **sizes)
+    study.escape_study(case2, ["A"], n_restarts=9, chunk_size=9, progress=True, **sizes)
     assert bar.events[1:3] == [("postfix", "compiling"), ("update", 9)]  # 9 -> 16 run: new
 
 
 def test_study_summaries_tables_and_records(case2):
-    result = study.escape_study(case2, ["A", "C"], n_seeds=6, constraint="feasibility", **SMALL)
+    result = study.escape_study(case2, ["A", "C"], n_restarts=6, constraint="feasibility", **SMALL)
     assert [m.variant.label for m in result.methods] == ["A:feasibility", "C:feasibility"]
-    summary = result["A:feasibility"].summary()
-    assert summary["escaped"] == int(np.sum(result["A:feasibility"].outcome.escape_iter >= 0))
-    curve = result["A:feasibility"].escape_curve()
+    summary = result.method("A:feasibility").summary()
+    assert summary["escaped"] == int(np.sum(result.method("A:feasibility").outcome.escape_iter >= 0))
+    curve = result.method("A:feasibility").escape_curve()
     assert curve.shape == (13,) and np.all(np.diff(curve) >= 0)
     assert curve[-1] == pytest.approx(summary["escape_rate"])
     table = result.table()
@@ -99,7 +99,7 @@ def test_study_summaries_tables_and_records(case2):
     assert len(records) == 12 and records[0]["restart"] == 0
     assert result.to_csv().splitlines()[0].startswith("problem,method,constraint")
     with pytest.raises(KeyError, match="no method 'B'"):
-        result["B"]
+        result.method("B")
 
 
 def test_sweep_finds_feasible_intervals(case2):
@@ -117,16 +117,15 @@ def test_study_rows_have_unique_labels_and_feasibility_comes_from_the_violation(
     wide = jaxarm.PSOConfig(cognitive_coeff=2.0, social_coeff=2.0)
     narrow = jaxarm.PSOConfig(cognitive_coeff=0.5, social_coeff=0.5)
     named = jaxarm.Variant("mine", narrow, "feasibility")
-    result = study.escape_study(case2, [wide, narrow, named, "A"], n_seeds=4, **SMALL)
+    result = study.escape_study(case2, [wide, narrow, named, "A"], n_restarts=4, **SMALL)
     assert [m.variant.label for m in result.methods] == ["custom", "custom-2", "mine", "A"]
-    assert result["custom-2"].variant.config == narrow
+    assert result.method("custom-2").variant.config == narrow
     for method in result.methods:
         feasible = method.outcome.best_violation == 0
         np.testing.assert_array_equal(method.outcome.feasible, feasible)
         assert method.summary()["fitness_best"] == (
             method.outcome.best_fitness[feasible].max() if feasible.any() else None)
-    with pytest.raises(KeyError, match="no method 0"):
-        result[0]  # rows by label only; fields by name
+    assert result[0] == result.problem_name  # a Study indexes as the tuple it is
     assert result.problem_name == case2.name
 
 
@@ -146,4 +145,4 @@ def test_study_rows_have_unique_labels_and_feasibility_comes_from_the_violation(
 )
 def test_bad_study_arguments_name_the_field(case2, methods, kwargs, message):
     with pytest.raises(ValueError, match=message):
-        study.escape_study(case2, methods, n_seeds=2, **kwargs)
+        study.escape_study(case2, methods, n_restarts=2, **kwargs)

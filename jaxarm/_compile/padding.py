@@ -56,3 +56,13 @@ def on_padded_rows(kernel, x, smallest: int = SMALL_BATCH):
 
     return jax.tree.map(cut, kernel(rows))
 
+
+def in_blocks(kernel, rows: np.ndarray, block: int) -> np.ndarray:
+    """``kernel`` over ``rows`` (B, ...) in blocks of ``block`` rows, the last block padded
+    with copies of the first row, so that every call has one shape (one compiled program);
+    the results, shape (B, ...), concatenated with the padding cut away. For work too large
+    for one call (memory, or a progress bar that moves)."""
+    n_rows = rows.shape[0]
+    padded = np.concatenate([rows, np.repeat(rows[:1], -n_rows % block, axis=0)])
+    return np.concatenate([kernel(padded[start:start + block])
+                           for start in range(0, n_rows, block)])[:n_rows]

@@ -63,8 +63,9 @@ class Measured(NamedTuple):
 
     objective: jax.Array  # to maximise when constraints are ignored (jaxarm: 1 / distance)
     fitness: jax.Array  # what is reported (the paper's eq. 17: 0 on collision)
-    violation: jax.Array  # >= 0, 0 iff feasible (jaxarm: depth x distance, ``path_measures``)
-    reported_violation: jax.Array  # what is reported (jaxarm: ``jaxarm.violation``, the depth)
+    ranked_violation: jax.Array  # >= 0, 0 iff feasible: what the rules rank colliding paths
+    #   by (jaxarm: depth x distance, ``path_measures``)
+    violation: jax.Array  # what is reported (jaxarm: ``jaxarm.violation``, the depth, cm)
 
 
 def path_measures(fitness, violation, distance) -> Measured:
@@ -81,12 +82,12 @@ def path_measures(fitness, violation, distance) -> Measured:
 
     Example:
       >>> deep_and_short, deep_and_long = path_measures(
-      ...     jnp.zeros(2), jnp.array([1.0, 1.0]), jnp.array([4.0, 20.0])).violation.tolist()
+      ...     jnp.zeros(2), jnp.array([1.0, 1.0]), jnp.array([4.0, 20.0])).ranked_violation.tolist()
       >>> deep_and_short < deep_and_long
       True
     """
-    return Measured(objective=1.0 / distance, fitness=fitness, violation=violation * distance,
-                    reported_violation=violation)
+    return Measured(objective=1.0 / distance, fitness=fitness, ranked_violation=violation * distance,
+                    violation=violation)
 
 
 class RuleState(NamedTuple):
@@ -108,7 +109,7 @@ def _index(constraint):
 
 def initial_state(measured: Measured) -> RuleState:
     """The adaptive rules' state from the initial swarm's measurements (shape (n_particles,))."""
-    violation = measured.violation
+    violation = measured.ranked_violation
     epsilon0 = jnp.sort(violation)[int(EPSILON_QUANTILE * (violation.shape[0] - 1))]
     mean_violation = jnp.mean(violation)
     balanced = jnp.mean(measured.objective) / jnp.where(mean_violation > 0, mean_violation, 1.0)
@@ -136,7 +137,7 @@ def score(constraint, state: RuleState, measured: Measured, iteration, n_iters: 
       [5.0, -3.0]
     """
     index = _index(constraint)
-    fitness, violation, objective = measured.fitness, measured.violation, measured.objective
+    fitness, violation, objective = measured.fitness, measured.ranked_violation, measured.objective
     feasible = violation == 0
     epsilon = epsilon_level(state, iteration, n_iters)
     by_rule = [

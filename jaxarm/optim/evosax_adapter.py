@@ -36,7 +36,7 @@ from jaxarm.optim.constraints import constraint_index
 
 PREFIX = "evosax:"
 ALIASES = {"DE": "DifferentialEvolution", "GA": "SimpleGA"}
-CONSTRAINTS = ("death", "feasibility")
+STRATEGY_CONSTRAINTS = ("death", "feasibility")
 
 
 def available() -> bool:
@@ -102,8 +102,8 @@ def resolve_method(method):
 
 def check_constraint(config, constraint: str, label: str) -> None:
     """evosax strategies take the death penalty or feasibility rules only."""
-    if isinstance(config, StrategyConfig) and constraint not in CONSTRAINTS:
-        raise ValueError(f"constraint of {label} must be one of {CONSTRAINTS} (evosax "
+    if isinstance(config, StrategyConfig) and constraint not in STRATEGY_CONSTRAINTS:
+        raise ValueError(f"constraint of {label} must be one of {STRATEGY_CONSTRAINTS} (evosax "
                          f"strategies), got {constraint!r}")
 
 
@@ -163,7 +163,7 @@ def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high,
                              tell_key=tell if distribution else start_key), x
 
     def tell(state: StrategyState, x, measured, iteration) -> tuple[StrategyState, pso.StepInfo]:
-        cost = jnp.where(feasibility & (measured.violation > 0), measured.violation,
+        cost = jnp.where(feasibility & (measured.ranked_violation > 0), measured.ranked_violation,
                          -measured.fitness)
 
         def told():
@@ -180,13 +180,13 @@ def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high,
         state = state._replace(inner=inner, best_x=keep(x[best], state.best_x),
                                best_cost=keep(cost[best], state.best_cost),
                                best_fitness=keep(measured.fitness[best], state.best_fitness),
-                               best_violation=keep(measured.reported_violation[best],
+                               best_violation=keep(measured.violation[best],
                                                    state.best_violation))
         return state, pso.StepInfo(global_position=state.best_x,
                                    global_fitness=state.best_fitness,
                                    global_violation=state.best_violation,
                                    global_score=-state.best_cost,
-                                   n_feasible=(measured.violation == 0).sum(dtype=jnp.int32))
+                                   n_feasible=(measured.ranked_violation == 0).sum(dtype=jnp.int32))
 
     def ask(key, state: StrategyState):
         ask_key, tell_key = jax.random.split(key)

@@ -378,10 +378,10 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
         best_score = jnp.where(improved, score, old_score)
         best = jax.tree.map(lambda new, old: jnp.where(improved, new, old), measured,
                             state.best)
-        feasible = measured.violation == 0
+        feasible = measured.ranked_violation == 0
         escaped_now = (state.escape_iter < 0) & feasible.any()
         global_index = _choose_global(state.tie_key, best_score, rules.tie_break)
-        updated = constraints.updated_state(rule, best.violation[global_index] == 0)
+        updated = constraints.updated_state(rule, best.ranked_violation[global_index] == 0)
         new_state = state._replace(
             position=x,
             best_position=jnp.where(improved[:, None], x, state.best_position),
@@ -435,7 +435,7 @@ def _info(state: SwarmState, feasible) -> StepInfo:
     return StepInfo(
         global_position=state.best_position[state.global_index],
         global_fitness=state.best.fitness[state.global_index],
-        global_violation=state.best.reported_violation[state.global_index],
+        global_violation=state.best.violation[state.global_index],
         global_score=state.best_score[state.global_index],
         n_feasible=feasible.sum().astype(jnp.int32),
     )

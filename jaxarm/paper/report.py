@@ -68,8 +68,8 @@ def _print(text: str) -> None:
     tqdm.write(text, file=sys.stdout)
 
 
-def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None = None,
-                    suite: list[str] | None = None, suite_seeds: int | None = None,
+def reproduce_paper(out_dir="results", quick: bool = False, n_restarts: int | None = None,
+                    suite: list[str] | None = None, suite_restarts: int | None = None,
                     degrees=(6, 7, 8), log: Callable[[str], None] = _print,
                     progress: bool | None = None, workers: int | None = None):
     """Run the paper's experiments and the suite study; write ``out_dir/report.md``.
@@ -77,9 +77,9 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
     Args:
       out_dir: output folder (created).
       quick: smaller studies (100 seeds on case 1, 50 per suite scenario) for a demo.
-      n_seeds: seeds of the case-1 study (default 500, or 100 when quick).
+      n_restarts: seeds of the case-1 study (default 500, or 100 when quick).
       suite: scenario names for the suite study (default: every shipped scenario).
-      suite_seeds: seeds per suite scenario (default 200, or 50 when quick).
+      suite_restarts: seeds per suite scenario (default 200, or 50 when quick).
       degrees: path degrees compared in the beyond-the-paper section.
       log: where progress lines go (default: stdout, above any progress bars).
       progress: progress bars (default: when stderr is a terminal).
@@ -95,8 +95,8 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
     """
     began = time.perf_counter()
     # Every name and size is checked before the first study: a typo fails in a second.
-    n_seeds = positive_int("n_seeds", n_seeds) if n_seeds is not None else (100 if quick else 500)
-    suite_seeds = (positive_int("suite_seeds", suite_seeds) if suite_seeds is not None
+    n_restarts = positive_int("n_restarts", n_restarts) if n_restarts is not None else (100 if quick else 500)
+    suite_restarts = (positive_int("suite_restarts", suite_restarts) if suite_restarts is not None
                    else (50 if quick else 200))
     suite = _suite_problems(list(scenario_files.available()) if suite is None else suite)
     degrees = [positive_int("degrees", d, minimum=6) for d in degrees]
@@ -104,7 +104,7 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     report = _Report(out)
-    chunk = _shared_chunk(n_seeds, suite_seeds)
+    chunk = _shared_chunk(n_restarts, suite_restarts)
     # The paper's tables use the paper's check: collision-free at the 101 samples of r.
     case1, case2, case3, death_trap = (
         scenario_files.load_scenario(name, collision="sampled")
@@ -130,7 +130,7 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
 
     def case_1(part: _Report) -> None:
         methods = ["A", "B", "C", "A:feasibility", "B:feasibility", "C:feasibility"]
-        case1_study = study.escape_study(case1, methods, n_seeds=n_seeds, chunk_size=chunk,
+        case1_study = study.escape_study(case1, methods, n_restarts=n_restarts, chunk_size=chunk,
                                          progress=progress)
         (out / "case1_study.json").write_text(case1_study.to_json())
         (out / "case1_study.csv").write_text(case1_study.to_csv())
@@ -144,20 +144,20 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_seeds: int | None 
         _table_6(part, case2)
 
     def rules_and_case_2(part: _Report) -> None:
-        _rules_section(part, [shared_case1, shared_death_trap], n_seeds, chunk, progress)
+        _rules_section(part, [shared_case1, shared_death_trap], n_restarts, chunk, progress)
         _feasible_set_section(part, case2)
         _trajectory_section(part, case2)
 
     sections = [
-        _Section(f"case 1: escape study, {n_seeds} seeds x 6 methods", case_1),
+        _Section(f"case 1: escape study, {n_restarts} seeds x 6 methods", case_1),
         _Section("cases II and III (Table 3), Tables 4-6", tables_3_to_6),
         _Section(f"beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine",
                  lambda part: part.add(*beyond_paper_section(
                      (case1, case2, case3), 20 if quick else 100, degrees)), long=True),
-        _Section(f"constraint rules compared on case 1 and death-trap, {n_seeds} seeds each",
+        _Section(f"constraint rules compared on case 1 and death-trap, {n_restarts} seeds each",
                  rules_and_case_2),
-        _Section(f"shipped suite: {len(suite)} scenarios x {suite_seeds} seeds x 2 methods",
-                 lambda part: _suite(part, suite, suite_seeds, chunk, progress), long=True),
+        _Section(f"shipped suite: {len(suite)} scenarios x {suite_restarts} seeds x 2 methods",
+                 lambda part: _suite(part, suite, suite_restarts, chunk, progress), long=True),
     ]
     for part in _run_sections(sections, out, workers, log, began):
         report.add(*part.lines)
@@ -302,7 +302,7 @@ def _table_2(report: _Report, case1_study) -> None:
         "|---|" + "---|" * 8,
     )
     for label in "ABC":
-        method = case1_study[label].outcome
+        method = case1_study.method(label).outcome
         cells = []
         for run in range(7):
             escape = int(method.escape_iter[run])
@@ -347,11 +347,11 @@ def _reconstruction_section(report: _Report, case1, case2, case1_study) -> None:
           f"{v.fitness:.4f} | {e:.1e} | {_verdict(v.published.fitness)} | {_verdict(v.fitness)} |"
           for v, e in zip(case1_verdicts, errors)],
         "", "Case 1, death-penalty escape over "
-        f"{case1_study.methods[0].n_seeds} seeds against the paper's 7 runs:", "",
+        f"{case1_study.methods[0].n_restarts} seeds against the paper's 7 runs:", "",
         "| preset | ours [95 % CI] | paper [95 % CI] |", "|---|---|---|",
     )
     for label in "ABC":
-        method = case1_study[label]
+        method = case1_study.method(label)
         low, high = method.escape_interval()
         paper_low, paper_high = study.wilson_interval(published.CASE_1_ESCAPES[label],
                                                       published.CASE_1_RUNS)
@@ -378,7 +378,7 @@ def _orientation(joints) -> float:
 
 
 def _escape_section(report: _Report, case1, case1_study, shared_case1) -> None:
-    n = case1_study.methods[0].n_seeds
+    n = case1_study.methods[0].n_restarts
     report.add(
         f"## Escape probability on case 1 over {n} seeds, with 95 % Wilson intervals", "",
         "The paper's 7 runs per variant cannot separate the variants; this can. Beside the "
@@ -396,14 +396,14 @@ def _escape_section(report: _Report, case1, case1_study, shared_case1) -> None:
                   "Escape rates on case 1")
     report.figure(plot.plot_escape_curves(case1_study), "case1_escape_curves.png",
                   "Fraction escaped by iteration")
-    method = case1_study["A"].outcome
+    method = case1_study.method("A").outcome
     n_shown = min(60, len(method.escape_iter))  # more curves would hide one another
     report.figure(plot.plot_convergence(method.history[:n_shown], method.escape_iter[:n_shown],
                                         title=f"Case 1, preset A, death penalty: the first "
                                               f"{n_shown} of {len(method.escape_iter)} seeds "
                                               "(paper Fig. 12)"),
                   "case1_convergence.png", "Escape and evolution, preset A")
-    rules = case1_study["A:feasibility"].outcome
+    rules = case1_study.method("A:feasibility").outcome
     x = rules.best_x[rules.best_restart()]
     proof = certify(shared_case1, x)
     depth = -float(proof.clearance)
@@ -491,12 +491,12 @@ def _suite_problems(names) -> list:
     return share_capacities(scenario_files.load_scenario(name, collision="sampled") for name in names)
 
 
-def _shared_chunk(n_seeds: int, suite_seeds: int) -> int:
+def _shared_chunk(n_restarts: int, suite_restarts: int) -> int:
     """Seeds per compiled call in every study of the report: the greatest common divisor of the
     two study sizes when it is at least 20 (50 quick, 100 in full), so that the case-1 and
     death-trap studies reuse the suite's programs (results do not depend on it); else
     ``escape_study``'s default."""
-    common = math.gcd(n_seeds, suite_seeds)
+    common = math.gcd(n_restarts, suite_restarts)
     return common if common >= 20 else 500
 
 
@@ -514,9 +514,9 @@ def _certified_escapes(problem, outcomes) -> list[tuple[int, int]]:
     return [(int(free[end - len(p):end].sum()), len(p)) for p, end in zip(paths, ends)]
 
 
-def _suite(report: _Report, problems: list, n_seeds: int, chunk: int, progress) -> None:
+def _suite(report: _Report, problems: list, n_restarts: int, chunk: int, progress) -> None:
     report.add(
-        f"## The shipped suite: escape rates over {n_seeds} seeds (preset A)", "",
+        f"## The shipped suite: escape rates over {n_restarts} seeds (preset A)", "",
         "*Free share*: the share of the init range whose paths are collision-free "
         "(`jaxarm.feasible_fraction`, 10,000 uniform draws); *start*: the probability that the "
         "initial swarm of 20 already holds a free path, predicted from it (1 - (1 - p)^20) and "
@@ -529,7 +529,7 @@ def _suite(report: _Report, problems: list, n_seeds: int, chunk: int, progress) 
     )
     rates = []
     for problem in problems:
-        result = study.escape_study(problem, ["A", "A:feasibility"], n_seeds=n_seeds,
+        result = study.escape_study(problem, ["A", "A:feasibility"], n_restarts=n_restarts,
                                     chunk_size=chunk, progress=progress)
         cells = []
         for method in result.methods:
@@ -576,12 +576,12 @@ def rule_methods() -> tuple[list, str]:
                    "rows are left out (`pip install 'jaxarm[bench]'` adds them).")
 
 
-def _rules_section(report: _Report, problems: list, n_seeds: int, chunk: int,
+def _rules_section(report: _Report, problems: list, n_restarts: int, chunk: int,
                    progress) -> None:
     methods, evosax_note = rule_methods()
     report.add(
         "## Constraint rules compared (preset A, and evosax strategies)", "",
-        f"{n_seeds} seeds per row, the paper's sampled check. Rules (`jaxarm.optim.constraints`): the "
+        f"{n_restarts} seeds per row, the paper's sampled check. Rules (`jaxarm.optim.constraints`): the "
         "paper's death penalty, feasibility rules, the epsilon-constrained comparison and an "
         "adaptive penalty; *ring* rows use the lbest ring topology instead of the global best, "
         "*global-ring* the global best for the first 5 % of the iterations and the ring after; "
@@ -598,7 +598,7 @@ def _rules_section(report: _Report, problems: list, n_seeds: int, chunk: int,
         "| vs death penalty | certified |", "|---|---|---|---|---|---|---|",
     )
     for problem in problems:
-        result = study.escape_study(problem, methods, n_seeds=n_seeds, chunk_size=chunk,
+        result = study.escape_study(problem, methods, n_restarts=n_restarts, chunk_size=chunk,
                                     progress=progress)
         proved = _certified_escapes(problem, [method.outcome for method in result.methods])
         for method, (n_proved, n_escaped) in zip(result.methods, proved):
@@ -625,7 +625,7 @@ def _feasible_set_section(report: _Report, case2) -> None:
     report.add(
         "## The feasible set of case II (the paper's section 11.3)", "",
         f"{share.fraction:.2%} [{share.interval[0]:.2%}, {share.interval[1]:.2%}] of case II's "
-        f"init range is collision-free ({share.n_samples:,} uniform draws, sampled check), so "
+        f"init range is collision-free ({share.n_paths:,} uniform draws, sampled check), so "
         f"a swarm of 20 starts with a free path with probability "
         f"{share.start_escape(20)[0]:.0%}. The slices below pass through the paper's optimum "
         f"{exact_text(optimum)} (cross), one pair of coefficients varied at a time over the "
