@@ -49,11 +49,11 @@ def main():
               f"{1000 * 20 * 101 / later[problem.collision]:,.0f} path evaluations per second")
     print(f"certified / sampled time: {later['certified'] / later['sampled']:.1f}x")
 
-    cached = compiled_search._cache_size()
+    cached = compiled_search.programs_made()
     other = sampled.replace(world=jaxarm.World(circles=[(44.0, 6.0, 9.0), (-30.0, 30.0, 3.0)]),
                           init_low=-50.0, init_high=50.0)
     second_scenario = timed(lambda: run(other, 1000))  # sampled, as compiled above
-    recompiled = compiled_search._cache_size() - cached
+    recompiled = compiled_search.programs_made() - cached
     print(f"A different obstacle and init range, same sizes: {second_scenario:.2f} s, "
           f"{recompiled} new compilation(s)")
 

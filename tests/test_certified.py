@@ -115,7 +115,7 @@ def test_small_certify_batches_share_one_program_and_agree_with_a_large_one(rng)
     x = rng.uniform(-60, 60, (200, problem.n_free)).astype(np.float32)
     large = jaxarm.certify(problem, x)
     jaxarm.certify(problem, x[:1])
-    programs = _evaluate_and_certify._cache_size()
+    programs = _evaluate_and_certify.programs_made()
     for size in (1, 5, SMALL_BATCH):
         small = jaxarm.certify(problem, x[:size])
         for name, field in small._asdict().items():
@@ -127,7 +127,7 @@ def test_small_certify_batches_share_one_program_and_agree_with_a_large_one(rng)
     np.testing.assert_array_equal(violation == 0, large.free)
     sampled = jaxarm.certify(problem.replace(collision="sampled"), x[:5])
     np.testing.assert_array_equal(sampled.clearance, large.clearance[:5])
-    assert _evaluate_and_certify._cache_size() == programs
+    assert _evaluate_and_certify.programs_made() == programs
     assert jaxarm.certify(problem, x[:0]).free.shape == (0,)
 
 

@@ -75,9 +75,9 @@ def test_refine_shares_programs_and_rows_do_not_depend_on_their_neighbours(
         feasible_case2_paths, case2):
     rows = np.asarray(feasible_case2_paths)
     few = jaxarm.refine(case2, rows[:3], n_steps=20)
-    before = refine_lib._compiled_refine._cache_size()
+    before = refine_lib._compiled_refine.programs_made()
     many = jaxarm.refine(case2, np.concatenate([rows[:3], rows[:3], rows[:3] + 1.0]), n_steps=20)
-    assert refine_lib._compiled_refine._cache_size() == before  # 3 and 9 rows: the same program
+    assert refine_lib._compiled_refine.programs_made() == before  # 3 and 9 rows: the same program
     np.testing.assert_array_equal(many.x[:3], few.x)
     np.testing.assert_array_equal(many.fitness[3:6], few.fitness)
     wide = jaxarm.refine(case2, rows[:40], n_steps=20)  # 64 rows

@@ -46,9 +46,9 @@ def test_fitness_is_inverse_distance_when_free_and_zero_when_colliding(case2, rn
     fitness = np.asarray(jaxarm.fitness(case2, x))
     distance = np.asarray(jaxarm.travelling_distance(case2, x))
     np.testing.assert_array_equal(distance, jaxarm.checks.evaluate._evaluated(case2, x).distance)
-    programs = jaxarm.checks.evaluate._evaluate_and_certify._cache_size()
+    programs = jaxarm.checks.evaluate._evaluate_and_certify.programs_made()
     jaxarm.travelling_distance(case2.replace(n_samples=41), x)  # runs no collision check
-    assert jaxarm.checks.evaluate._evaluate_and_certify._cache_size() == programs
+    assert jaxarm.checks.evaluate._evaluate_and_certify.programs_made() == programs
     violation = np.asarray(jaxarm.violation(case2, x))
     free = violation == 0
     assert 0 < free.sum() < len(x)
@@ -76,13 +76,13 @@ def test_batches_are_padded_to_a_few_sizes_and_rows_do_not_depend_on_them(case2,
     x = rng.uniform(-200, 200, (SMALL_BATCH + 6, 3)).astype(np.float32)
     large = [np.asarray(f(case2, x)) for f in (jaxarm.fitness, jaxarm.violation)]
     jaxarm.fitness(case2, x[:1])
-    programs = _evaluate_and_certify._cache_size()
+    programs = _evaluate_and_certify.programs_made()
     for size in (1, 5, SMALL_BATCH):
         for f, whole in zip((jaxarm.fitness, jaxarm.violation), large):
             np.testing.assert_array_equal(np.asarray(f(case2, x[:size])), whole[:size])
     assert np.asarray(jaxarm.travelling_distance(case2, x[:2].reshape(2, 1, 3))).shape == (2, 1)
     assert jaxarm.fitness(case2, x[:0]).shape == (0,)  # run as 64 zero paths, cut away
-    assert _evaluate_and_certify._cache_size() == programs
+    assert _evaluate_and_certify.programs_made() == programs
 
 
 @pytest.mark.parametrize("mode", ["sampled", "certified"])
@@ -115,9 +115,9 @@ def test_new_obstacle_data_does_not_recompile(case2):
     assert moved.spec == case2.spec
     x = jnp.zeros((4, 3))
     jaxarm.fitness(case2, x)
-    before = jaxarm.checks.evaluate._evaluate_and_certify._cache_size()
+    before = jaxarm.checks.evaluate._evaluate_and_certify.programs_made()
     jaxarm.fitness(moved, x)
-    assert jaxarm.checks.evaluate._evaluate_and_certify._cache_size() == before
+    assert jaxarm.checks.evaluate._evaluate_and_certify.programs_made() == before
 
 
 ARM = jaxarm.Arm((30.0, 30.0, 20.0))
@@ -272,10 +272,10 @@ def test_problems_of_one_arm_share_the_posture_check_program():
     joints and worlds of up to 4 circles and 4 polygons share it (lengths are data)."""
     from jaxarm.model import problem as problem_lib
 
-    before = problem_lib._posture_depth._cache_size()
+    before = problem_lib._posture_depth.programs_made()
     for n_circles, lengths in ((1, (21.0, 22.0, 23.0)), (2, (31.0, 12.0, 13.0)), (3, ARM.lengths)):
         world = jaxarm.World(circles=[(200.0 + 10 * i, 0.0, 2.0) for i in range(n_circles)],
                              boxes=[((-90.0, 80.0), (-80.0, 90.0))] * (n_circles % 2))
         jaxarm.Problem(arm=jaxarm.Arm(lengths), start=[0.0, 0.5, 0.5], goal=[1.5, 0.5, 0.5],
                        world=world)
-    assert problem_lib._posture_depth._cache_size() - before <= 1
+    assert problem_lib._posture_depth.programs_made() - before <= 1

@@ -18,14 +18,42 @@ def test_programs_run_alone_and_inside_a_callers_jit_and_vmap_alike(case2):
     np.testing.assert_array_equal(np.asarray(inside_vmap), alone)
 
 
+def _compiler_options_carried_by(lowered) -> dict:
+    """The compiler options a ``jax.stages.Lowered`` will compile with. JAX has no public way to
+    read them: ``Lowered`` and ``Compiled`` expose none, and the option's effect is not
+    observable through them either (on CPU ``Compiled.as_text()`` is the same HLO at LLVM
+    optimisation levels 1 and 2, and ``memory_analysis()`` reports no generated code size).
+    So this is the one place the tests read a private attribute of JAX."""
+    return dict(lowered._lowering._compiler_options_kvs or ())
+
+
 def test_top_level_programs_carry_the_cpu_options_and_forward_jit_attributes():
     square = jit_lib.jit(lambda v: v * v)
-    assert float(square(3.0)) == 9.0 and square._cache_size() == 1  # jax.jit's own attribute
-    options = dict(square.lower(2.0)._lowering._compiler_options_kvs or ())
-    nested = dict(square._nested.lower(2.0)._lowering._compiler_options_kvs or ())
+    assert square.programs_made() == 0
+    assert float(square(3.0)) == 9.0 and square.programs_made() == 1
+    options = _compiler_options_carried_by(square.lower(2.0))  # forwarded to the top-level jit
+    nested = _compiler_options_carried_by(square._nested.lower(2.0))
     assert nested == {}
     if jax.default_backend() == "cpu":
         assert options == {"xla_backend_optimization_level": 1}
     else:
         assert options == {}
     assert float(jax.jit(lambda v: square(v) + 1.0)(2.0)) == 5.0  # inside a caller's trace
+
+
+def _cube(v):
+    return v * v * v
+
+
+def test_programs_made_counts_new_top_level_programs_only():
+    cube = jit_lib.jit(_cube)
+    assert float(cube(2.0)) == 8.0 and float(cube(3.0)) == 27.0
+    assert cube.programs_made() == 1  # a second value of the same shape: the same program
+    np.testing.assert_array_equal(cube(np.ones(2, np.float32)), np.ones(2, np.float32))
+    assert cube.programs_made() == 2  # a new shape: a new program
+    assert float(jax.jit(lambda v: cube(v) + 1.0)(np.float32(2.0))) == 9.0
+    assert float(jax.vmap(cube)(np.ones(3, np.float32))[0]) == 1.0
+    assert cube.programs_made() == 2  # inside a caller's trace: the caller's program
+    again = jit_lib.jit(_cube)
+    assert float(again(2.0)) == 8.0 and again.programs_made() == 1  # a count of its own
+    assert cube.programs_made() == 2

@@ -53,13 +53,13 @@ def test_jit_equals_no_jit_on_one_restart(case2):
 
 def test_a_second_problem_with_the_same_sizes_does_not_recompile(case2, case3):
     jaxarm.solve(case2, "A", n_restarts=2, **SMALL)
-    before = compiled_search._cache_size()
+    before = compiled_search.programs_made()
     jaxarm.solve(case3, "B", n_restarts=2, seed=5, **SMALL)  # new data, new preset, new seed
     jaxarm.solve(case2.replace(start=[5.7, 1.2, 0.7]), "C", n_restarts=2, **SMALL)
     jaxarm.solve(case2, "A", n_restarts=2, constraint="feasibility", **SMALL)  # rule is data
     jaxarm.solve(case2, "A-ring", n_restarts=2, **SMALL)  # so is the topology
     given = jaxarm.solve(case2, "A", n_restarts=2, init_particles=[[66.7, -28.1, -9.9]], **SMALL)
-    assert compiled_search._cache_size() == before  # and the number of given particles
+    assert compiled_search.programs_made() == before  # and the number of given particles
     assert given.restarts.best_fitness.min() > 0  # the given free path is a personal best
 
 

@@ -112,13 +112,14 @@ def test_calls_that_cannot_be_keyed_run_as_plain_jit(case2, monkeypatch, tmp_pat
     assert custom.fitness[0] >= custom.initial_fitness[0] > 0.1
     # a storable program of its own (jaxarm's are already in this process's memory)
     evaluate = jit(evaluate_lib.evaluate, static_argnums=0, storable=True)
-    shared = evaluate._cache_size()  # jax.jit's cache is shared with equal jits made elsewhere
+    assert evaluate.programs_made() == 0  # counted per program, not in jax.jit's shared cache
     evaluate(case2.spec, case2.arrays, x)
     assert len(list(tmp_path.iterdir())) == 1
     stored_programs.keep_in(None)  # the off switch (monkeypatch puts the run's folder back after)
     assert stored_programs.directory() is None and not stored_programs.usable()
     evaluate(case2.spec, case2.arrays, np.repeat(x, 2, axis=0))  # traced by jax.jit only
-    assert len(list(tmp_path.iterdir())) == 1 and evaluate._cache_size() == shared + 2
+    # one stored program, then one traced by jax.jit
+    assert len(list(tmp_path.iterdir())) == 1 and evaluate.programs_made() == 2
 
 
 def test_a_damaged_stored_trace_is_traced_again_and_replaced(case2, monkeypatch, tmp_path):
@@ -153,7 +154,7 @@ def test_a_program_export_refuses_runs_as_plain_jit_with_a_warning(monkeypatch, 
     with pytest.warns(RuntimeWarning, match="_doubled_on_the_host is traced in every process"):
         np.testing.assert_array_equal(program(v), 2 * v)
     np.testing.assert_array_equal(program(v + 1), 2 * (v + 1))  # no second warning
-    assert not list(tmp_path.iterdir()) and program._cache_size() == 1
+    assert not list(tmp_path.iterdir()) and program.programs_made() == 1
 
 
 def test_threads_asking_for_one_program_together_trace_and_compile_it_once(
@@ -171,7 +172,7 @@ def test_threads_asking_for_one_program_together_trace_and_compile_it_once(
     evaluate = jit(evaluate_lib.evaluate, static_argnums=0, storable=True)
     x = np.array([[66.7388, -28.1028, -9.8855]], np.float32)
     results = [None, None]
-    before = evaluate._cache_size()  # jax.jit shares its cache with other tests' programs
+    assert evaluate.programs_made() == 0
 
     def call(i):
         results[i] = evaluate(case2.spec, case2.arrays, x)
@@ -181,7 +182,7 @@ def test_threads_asking_for_one_program_together_trace_and_compile_it_once(
         thread.start()
     for thread in threads:
         thread.join()
-    assert len(exports) == 1 and evaluate._cache_size() == before + 1
+    assert len(exports) == 1 and evaluate.programs_made() == 1
     assert len(list(tmp_path.iterdir())) == 1
     for a, b in zip(*results):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))

@@ -63,6 +63,24 @@ def _at_top_level(args) -> bool:
     return _trace_state_clean()
 
 
+class _TraceCounter:
+    """How many times a function was traced: ``counting(fun)`` is ``fun`` counting its calls
+    (thread-safe; kept apart from ``_Program`` so that the wrapper jax.jit holds does not hold
+    the program too)."""
+
+    def __init__(self):
+        self.count = 0
+        self._lock = threading.Lock()
+
+    def counting(self, fun):
+        @functools.wraps(fun)
+        def counted(*args, **kwargs):
+            with self._lock:
+                self.count += 1
+            return fun(*args, **kwargs)
+        return counted
+
+
 class _Program:
     """A ``jax.jit`` made at its first use, for the backend in use then; with
     ``jaxarm._compile.stored_programs`` on, top-level calls go through stored traced programs instead.
@@ -75,6 +93,8 @@ class _Program:
         self._nested = jax.jit(fun, **options)
         self._stored = {}  # Call.memo_key() -> stored_programs.Stored, or None where export refused it
         self._lock = threading.Lock()  # held while _jitted or a stored program is made
+        self._traces = _TraceCounter()
+        self._counted = self._traces.counting(fun)  # what the top-level jax.jit traces
         functools.update_wrapper(self, fun)
 
     def _compiler_options(self):
@@ -83,7 +103,7 @@ class _Program:
     def _compiled(self):
         with self._lock:
             if self._jitted is None:
-                self._jitted = jax.jit(self._fun, compiler_options=self._compiler_options(),
+                self._jitted = jax.jit(self._counted, compiler_options=self._compiler_options(),
                                        **self._options)
             return self._jitted
 
@@ -119,15 +139,29 @@ class _Program:
                                                           self._compiler_options())
             return self._stored[key]
 
-    def _cache_size(self) -> int:
-        """Programs compiled so far: ``jax.jit``'s own and those run from stored stored_programs."""
-        jitted = self._compiled()
+    def programs_made(self) -> int:
+        """How many top-level programs this function has made so far, in this process.
+
+        The number of times the top-level ``jax.jit`` has traced the function (a call, or a
+        ``lower`` or ``trace`` through this object, with static arguments, shapes or dtypes it
+        has not traced yet, or after ``jax.clear_caches()``), plus one per stored program made
+        or loaded by ``jaxarm._compile.stored_programs`` (a program ``jax.export`` refused is
+        not one: its calls go to the ``jax.jit`` and are counted there). Calls inside a caller's
+        trace use a plain ``jax.jit`` of their own and are not counted. The count is this
+        object's own: a ``jit`` made elsewhere around the same function has its own count. It
+        only grows.
+
+        Why: tests and benchmarks assert how many programs a run compiles ("a second batch
+        size of the same padded size makes no new program") without reading JAX's private
+        attributes (``jax.jit``'s ``_cache_size()``). The trace is counted by a wrapper around
+        the Python function (``functools.wraps``, so signatures and ``static_argnames`` resolve
+        as before), which changes nothing in the traced program or its results."""
         with self._lock:
-            stored = list(self._stored.values())
-        return jitted._cache_size() + sum(s is not None for s in stored)
+            stored = sum(s is not None for s in self._stored.values())
+        return self._traces.count + stored
 
     def __getattr__(self, name: str):  # trace, lower, ...
         if name.startswith("__") or name in ("_fun", "_options", "_jitted", "_nested", "_stored",
-                                                   "_storable", "_lock"):
+                                                   "_storable", "_lock", "_traces", "_counted"):
             raise AttributeError(name)
         return getattr(self._compiled(), name)
