@@ -195,9 +195,10 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
       ``Result``.
 
     Example:
-      >>> result = jaxarm.solve(jaxarm.load_scenario("paper-case-2"), constraint="feasibility")
-      >>> result.feasible
-      True
+      >>> problem = jaxarm.load_scenario("paper-case-2")
+      >>> result = jaxarm.solve(problem, "A:feasibility", n_particles=6, n_iters=5)
+      >>> result.feasible, result.certified, result.best_x.shape
+      (True, True, (3,))
     """
     began = time.perf_counter()
     variant = search_variant(method, constraint)

@@ -242,6 +242,12 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
 
     Returns:
       ``Study``.
+
+    Example:
+      >>> study = jaxarm.escape_study(jaxarm.load_scenario("paper-case-2"), ["A", "B"],
+      ...                             n_restarts=4, n_iters=5, n_particles=6)
+      >>> [(m.variant.label, m.n_restarts) for m in study.methods]
+      [('A', 4), ('B', 4)]
     """
     variants = parse_variants(methods, constraint)
     check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint)

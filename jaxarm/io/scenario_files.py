@@ -94,6 +94,11 @@ def load_scenario(name_or_path: str | pathlib.Path, **overrides) -> Problem:
     Raises:
       ScenarioError: unknown name, unreadable file, malformed TOML (with line and column),
         a missing or unknown key, or invalid values (naming the key).
+
+    Example:
+      >>> problem = jaxarm.load_scenario("paper-case-2", collision="sampled")
+      >>> problem.name, problem.n_free, problem.collision
+      ('paper-case-2', 3, 'sampled')
     """
     text, source = _read(name_or_path)
     try:

@@ -107,10 +107,10 @@ class Problem:
       ValueError: naming the field and value, including a start or goal posture that collides.
 
     Example:
-      >>> problem = Problem(arm=Arm((30.0, 30.0, 20.0)), start=[0.0, 0.5, 0.5],
-      ...                   goal=[1.0, 0.5, 0.5])
-      >>> problem.n_free
-      3
+      >>> arm = jaxarm.Arm((30.0, 30.0, 20.0))
+      >>> problem = jaxarm.Problem(arm=arm, start=[0.0, 0.5, 0.5], goal=[1.0, 0.5, 0.5])
+      >>> problem.n_free, problem.collision
+      (3, 'certified')
     """
 
     arm: Arm

@@ -63,8 +63,9 @@ class World:
       polygons: convex polygons, each a list of >= 3 ``(x, y)`` vertices in either order.
 
     Example:
-      >>> World(circles=[(40.0, 4.5, 6.7)]).n_obstacles
-      1
+      >>> world = jaxarm.World(circles=[(40.0, 4.5, 6.7)], boxes=[((10.0, -5.0), (20.0, 5.0))])
+      >>> world.n_obstacles
+      2
     """
 
     circles: tuple = ()

@@ -183,7 +183,7 @@ def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weig
 
     Example:
       >>> problem = jaxarm.load_scenario("paper-case-2")
-      >>> polished = refine(problem, [113.0533, -42.3741, -10.0300])
+      >>> polished = jaxarm.refine(problem, [113.0533, -42.3741, -10.0300])
       >>> bool(polished.fitness > 0.1476)
       True
     """
