@@ -8,8 +8,24 @@ Quick start::
 
 The names below are loaded on first use, so ``import jaxarm`` (and the ``jaxarm`` command's
 ``--help``) does not import JAX.
-"""
 
+Layout. Data flows one way, scenario file -> ``Problem`` -> checks -> optimiser -> ``Result`` ->
+study, plot, report, CLI, and each layer imports only the ones before it:
+
+- ``jaxarm._compile``: how programs are compiled (``jit``, stored programs, the persistent
+  cache, batch padding). It knows nothing of arms.
+- ``jaxarm.model``: the arm, the obstacle world, the polynomial paths, dynamics and the
+  ``Problem`` that binds them. No collision check, no optimiser.
+- ``jaxarm.checks``: what a path scores: the sampled and certified collision checks, joint
+  limits, and ``fitness`` / ``violation`` / ``certify`` over any batch.
+- ``jaxarm.optim``: the method grammar, PSO, the constraint rules, the compiled restart loop,
+  the evosax adapter and gradient ``refine``. They see a problem only through ``evaluate``.
+- Top level: what users call: ``solve`` (``search``), ``escape_study`` (``study``),
+  ``stats``, ``feasible_fraction``, ``Trajectory``, ``plot``, ``cli``.
+- ``jaxarm.io`` (scenario files, saved runs) and ``jaxarm.paper`` (the paper's numbers, the
+  reconstruction of its scenes, the report): the only places that read or write files.
+- ``jaxarm.testing``: shapely oracles for tests and benchmarks; nothing else imports it.
+"""
 import importlib
 
 __version__ = "0.1.0"

@@ -211,8 +211,9 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
     if refine not in (False, True, "all"):
         raise ValueError(f"refine must be False, True or 'all', got {refine!r}")
     given = _check_init_particles(problem, init_particles, n_particles)
-    outcome = run_restarts(problem, config, constraint, n_particles, n_iters, seed, 0,
-                           n_restarts, given)
+    outcome = run_restarts(problem, config, constraint, n_particles=n_particles, n_iters=n_iters,
+                           seed=seed, first_restart=0, n_restarts=n_restarts,
+                           init_particles=given)
     pso_best = float(outcome.best_fitness[outcome.best_restart()])
     if refine:
         outcome = _refined(problem, outcome, every=refine == "all")

@@ -16,6 +16,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
+from jaxarm._compile.padding import equal_chunk_length
 from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import fitness
 from jaxarm.model.problem import Problem
@@ -234,9 +235,9 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
       n_iters, n_particles: PSO sizes (paper: 100 and 20).
       constraint: the constraint rule for entries that do not name one.
       seed: base seed; seed i of the study is restart i of ``solve(problem, seed=seed)``.
-      chunk_size: at most this many restarts per compiled call; the seeds are split into
-        chunks of equal length (``chunk_length``; one program for all of them). Bounds memory
-        and sets how often the progress bar moves; results do not depend on it.
+      chunk_size: at most this many restarts per compiled call; the restarts are split into
+        chunks of equal length (``padding.equal_chunk_length``; one program for all of them).
+        Bounds memory and sets how often the progress bar moves; results do not depend on it.
       progress: show a progress bar (it moves once per chunk and says when a call compiles);
         default: when stderr is a terminal.
 
@@ -256,7 +257,7 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
     if progress is None:
         progress = sys.stderr.isatty()
     bar = _progress_bar(len(variants) * n_restarts, problem.name, progress)
-    size = chunk_length(n_restarts, chunk_size)
+    size = equal_chunk_length(n_restarts, chunk_size)
     results = []
     for variant in variants:
         bar.set_description(f"{problem.name} {variant.label}")
@@ -267,8 +268,9 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
             bar.set_postfix_str("compiling" if compiling else "")
             # every chunk runs ``size`` restarts (one program); the last keeps what it needs
             keep = min(size, n_restarts - start)
-            outcome = run_restarts(problem, variant.config, variant.constraint, n_particles,
-                                   n_iters, seed, start, size)
+            outcome = run_restarts(problem, variant.config, variant.constraint,
+                                   n_particles=n_particles, n_iters=n_iters, seed=seed,
+                                   first_restart=start, n_restarts=size)
             parts.append(RestartOutcome(*(field[:keep] for field in outcome)))
             bar.update(keep)
         results.append(MethodStudy(variant=variant, restart_ids=np.arange(n_restarts),
@@ -276,13 +278,6 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
                                    seconds=time.perf_counter() - began))
     bar.close()
     return Study(problem.name, problem.collision, n_particles, n_iters, seed, tuple(results))
-
-
-def chunk_length(n: int, chunk_size: int) -> int:
-    """Restarts per call when ``n`` are run in the fewest chunks of at most ``chunk_size``,
-    as equal as possible: 1000 in chunks of at most 500 -> 500, 1001 -> 334 (334, 334, 333)."""
-    n_chunks = -(-n // chunk_size)
-    return -(-n // n_chunks)
 
 
 def _progress_bar(total: int, label: str, enabled: bool):

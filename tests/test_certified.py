@@ -146,9 +146,7 @@ def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch):
     monkeypatch.setattr(certified, "FEW_PATHS", -1)  # always the wide loop
     # compiled as ``certify`` is: the problem's arrays as arguments (as constants they were
     # folded into the program, and the clearances differed in their last bits)
-    chunked_wide = jit(lambda arrays, x: certified.check(
-        arrays.lengths, arrays.world, arrays.start, arrays.goal, x, problem.degree,
-        problem.n_samples, arrays.certify_tol, arrays.margin, problem.certify_budget))(arrays, x)
+    chunked_wide = jit(lambda arrays, x: certified.check(problem.spec, arrays, x))(arrays, x)
     assert np.sum(~one_chunk_narrow["colliding"]) > 3 * 16  # several chunks ran
     assert np.sum(one_chunk_narrow["free"]) > 10
     for name, value in one_chunk_narrow.items():

@@ -39,10 +39,11 @@ def test_jit_equals_no_jit_on_one_restart(case2):
     # sampled check (test_problem compares the certified one with and without jit)
     case2 = case2.replace(n_samples=11, collision="sampled")
     config = pso.PRESETS["C"]
-    args = (case2.spec, case2.arrays, config.params(), config.rules(),
-            *(jnp.asarray(b, jnp.float32) for b in case2.bounds()), jnp.int32(0),
-            jnp.zeros(1, jnp.int32), jnp.zeros((4, case2.n_free), jnp.float32), jnp.int32(0),
-            jnp.int32(constraints.constraint_index("feasibility")))
+    data = restarts.SearchData(
+        *(jnp.asarray(b, jnp.float32) for b in case2.bounds()), jnp.int32(0),
+        jnp.zeros(1, jnp.int32), jnp.zeros((4, case2.n_free), jnp.float32), jnp.int32(0),
+        jnp.int32(constraints.constraint_index("feasibility")))
+    args = (case2.spec, case2.arrays, config.params(), config.rules(), data)
     sizes = dict(n_particles=4, n_iters=2)
     jitted = compiled_search(*args, **sizes)
     with jax.disable_jit():

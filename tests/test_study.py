@@ -8,6 +8,7 @@ from sizes import SMALL
 
 import jaxarm
 from jaxarm import stats, study
+from jaxarm._compile.padding import equal_chunk_length
 
 
 def test_study_is_reproducible_and_chunking_does_not_matter(case2):
@@ -25,7 +26,7 @@ def test_study_is_reproducible_and_chunking_does_not_matter(case2):
 @pytest.mark.parametrize("n, limit, length", [(10, 4, 4), (1000, 500, 500), (1001, 500, 334),
                                                (7, 100, 7), (12, 1, 1), (999, 1000, 999)])
 def test_chunk_length_splits_the_seeds_into_the_fewest_near_equal_chunks(n, limit, length):
-    assert study.chunk_length(n, limit) == length
+    assert equal_chunk_length(n, limit) == length
 
 
 def test_compare_gives_the_difference_its_newcombe_interval_and_fishers_p(case2):

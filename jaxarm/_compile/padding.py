@@ -25,7 +25,7 @@ def padded_size(n_rows: int, smallest: int = SMALL_BATCH) -> int:
     programs then serve every batch size, for under twice the work.
     """
     if n_rows > LARGE_BLOCK:
-        return -(-n_rows // LARGE_BLOCK) * LARGE_BLOCK
+        return round_up(n_rows, LARGE_BLOCK)
     return max(smallest, 1 << (max(n_rows, 1) - 1).bit_length())
 
 
@@ -66,3 +66,15 @@ def in_blocks(kernel, rows: np.ndarray, block: int) -> np.ndarray:
     padded = np.concatenate([rows, np.repeat(rows[:1], -n_rows % block, axis=0)])
     return np.concatenate([kernel(padded[start:start + block])
                            for start in range(0, n_rows, block)])[:n_rows]
+
+
+def round_up(n: int, multiple: int) -> int:
+    """The smallest multiple of ``multiple`` >= ``n``."""
+    return -(-n // multiple) * multiple
+
+
+def equal_chunk_length(n: int, most: int) -> int:
+    """Items per call when ``n`` are run in the fewest chunks of at most ``most``, as equal as
+    possible: 1000 in chunks of at most 500 -> 500, 1001 -> 334 (334, 334, 333)."""
+    n_chunks = -(-n // most)
+    return -(-n // n_chunks)

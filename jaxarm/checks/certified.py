@@ -83,6 +83,7 @@ import numpy as np
 from jaxarm.checks import collision as collision_lib
 from jaxarm.model import path
 from jaxarm.model import world as world_lib
+from jaxarm.model.problem import ProblemArrays, ProblemSpec
 
 MAX_LEVELS = 22  # halvings of a sample window; offsets stay exact integers in float32
 LANES = 1024  # paths bisected at once on an accelerator ...
@@ -101,6 +102,25 @@ class CertifiedCheck(NamedTuple):
     colliding: jax.Array  # bool: a time where a link is closer than the margin was found
     clearance: jax.Array  # cm: see ``Certificate``
     exhausted: jax.Array  # bool: the budget ran out before a verdict
+
+
+class _Motion(NamedTuple):
+    """Paths and the problem data they move in: what every stage of the check reads."""
+
+    lengths: jax.Array  # shape=(n_joints,), cm
+    world: world_lib.WorldArrays
+    start: jax.Array  # shape=(n_joints,), rad
+    goal: jax.Array  # shape=(n_joints,), rad
+    x: jax.Array  # shape=(B, n_free), the paths' free parameters
+
+
+class _Work(NamedTuple):
+    """What the window stage leaves for the bisection (``_bisect``)."""
+
+    failing_words: jax.Array  # shape=(B, n_words), uint32: the failing windows
+    first_window: jax.Array  # shape=(B,), int32: the window to bisect first when it fails
+    work_rows: jax.Array  # shape=(B,), int32: the rows to bisect first, then anything
+    n_work: jax.Array  # shape=(), int32: how many rows need it
 
 
 class _WindowPass(NamedTuple):
@@ -126,8 +146,9 @@ def _no_windows(batch: tuple, dtype, n_samples: int) -> _WindowPass:
     )
 
 
-def _window_pass(lengths, world, start, goal, x, degree, n_samples, margin) -> path.SampleFold:
+def _window_pass(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
     """Stage 1 as a fold over the samples; ``finish`` returns the last ``_WindowPass``."""
+    lengths, world, start, goal, x = motion
     step = 1.0 / (n_samples - 1)
     tails = jnp.asarray(collision_lib.tail_weights(degree, np.linspace(0.0, 1.0, n_samples),
                                                     step / 2), x.dtype)
@@ -184,12 +205,12 @@ def _nearest_fold(lengths, world, x) -> path.SampleFold:
     )
 
 
-def _compacted_window_pass(lengths, world, start, goal, x, open_rows, n_open, degree,
-                           n_samples, margin) -> _WindowPass:
+def _compacted_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples,
+                           margin) -> _WindowPass:
     """Stage 1 on the paths ``open_rows[:n_open]`` only, ``WINDOW_CHUNK`` paths at a time.
 
     Args:
-      x: all paths, shape (B, n_free).
+      motion: all paths, x of shape (B, n_free).
       open_rows: shape (B,), int32: the rows to pass first, then anything.
       n_open: int32 scalar.
 
@@ -197,6 +218,7 @@ def _compacted_window_pass(lengths, world, start, goal, x, open_rows, n_open, de
       ``_WindowPass`` of arrays of shape (B,): the pass's values on the open rows, no failing
       window elsewhere.
     """
+    x = motion.x
     n_rows = x.shape[0]
     chunk = min(WINDOW_CHUNK, n_rows)
     padded = jnp.concatenate([open_rows, jnp.zeros(-n_rows % chunk, jnp.int32)])
@@ -205,9 +227,8 @@ def _compacted_window_pass(lengths, world, start, goal, x, open_rows, n_open, de
         first, out = state
         rows = jax.lax.dynamic_slice(padded, (first,), (chunk,))
         xs = x[rows]
-        windows = path.run_fold(_window_pass(lengths, world, start, goal, xs, degree,
-                                             n_samples, margin), start, goal, xs, degree,
-                                n_samples)
+        windows = path.run_fold(_window_pass(motion._replace(x=xs), degree, n_samples, margin),
+                                motion.start, motion.goal, xs, degree, n_samples)
         target = jnp.where(first + jnp.arange(chunk) < n_open, rows, n_rows)
         out = jax.tree.map(lambda o, v: o.at[target].set(v, mode="drop"), out, windows)
         return first + chunk, out
@@ -234,11 +255,11 @@ class _Piece(NamedTuple):
     offset: jax.Array  # shape=(n,), int32, in [0, 2**level)
 
 
-def _test_pieces(lengths, world, start, goal, x, pieces: _Piece, tables, step, margin):
+def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin):
     """Shortfall and nearest clearance of pieces, with tight bounds (module docstring, stage 2).
 
     Args:
-      x: each piece's path, shape (n, n_free).
+      motion: each piece's path, x of shape (n, n_free).
       tables: ``_derivative_tables``, shape (n_samples, degree + 1, degree - 4).
       step: the sample spacing h.
 
@@ -246,6 +267,7 @@ def _test_pieces(lengths, world, start, goal, x, pieces: _Piece, tables, step, m
       ``(shortfall, nearest, radius)``, each of shape (n,): ``max_k (delta_k - c_k)``, the
       smallest distance of a link to an obstacle at the centre, and the piece's half-width.
     """
+    lengths, world, start, goal, x = motion
     dtype = x.dtype
     degree = tables.shape[1] - 1
     scale = jnp.asarray(step / 2.0 ** (np.arange(MAX_LEVELS + 1) + 1), dtype)  # exact halvings
@@ -328,8 +350,8 @@ def _empty_verdict(shape, dtype) -> _Verdict:
                     proved=jnp.full(shape, jnp.inf, dtype), violation=jnp.zeros(shape, dtype))
 
 
-def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_rows, n_work,
-            tables, step, tol, margin, budget: int, n_lanes: int) -> _Verdict:
+def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int,
+            n_lanes: int) -> _Verdict:
     """Stage 2: bisect the failing windows of the paths ``work_rows[:n_work]``.
 
     Each lane walks one path's pieces depth first (sample windows in order; a piece that must
@@ -339,17 +361,16 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
     a witness, or out of budget) takes the next path of the work list.
 
     Args:
-      x: all paths, shape (B, n_free).
-      failing_words: shape (B, n_words), uint32: the failing windows.
-      first_window: shape (B,), int32: the window to bisect first when it fails.
-      work_rows: shape (B,), int32: the rows to bisect first, then anything.
-      n_work: int32 scalar.
+      motion: all paths, x of shape (B, n_free).
+      work: the failing windows and the rows to bisect.
       budget: pieces a path tests before none of its pieces is split.
       n_lanes: paths in flight.
 
     Returns:
       ``_Verdict`` of arrays of shape (B,) (meaningful on the work rows).
     """
+    lengths, world, start, goal, x = motion
+    failing_words, first_window, work_rows, n_work = work
     n_rows, dtype = x.shape[0], x.dtype
     n_samples = tables.shape[0]
     # With one polygon slot the minimum over the slots is no reduction at all, and XLA then
@@ -390,8 +411,8 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
         # them when none is active.
         shortfall, nearest, radius = jax.lax.cond(
             lanes.active.any(),
-            lambda: _test_pieces(lengths, world, start, goal, lanes.x, piece, tables, step,
-                                 margin),
+            lambda: _test_pieces(_Motion(lengths, world, start, goal, lanes.x), piece, tables,
+                                 step, margin),
             lambda: (jnp.zeros(n_lanes, dtype),) * 3)
         # Pieces wholly outside [0, 1] (before r = 0 or after r = 1) need no test.
         half = jnp.left_shift(1, piece.level) >> 1  # 2**(level - 1); 0 at level 0
@@ -470,40 +491,38 @@ def _bisect(lengths, world, start, goal, x, failing_words, first_window, work_ro
     return out
 
 
-def check(lengths, world, start, goal, x, degree: int, n_samples: int, certify_tol, margin,
-          budget: int) -> CertifiedCheck:
+def check(spec: ProblemSpec, arrays: ProblemArrays, x) -> CertifiedCheck:
     """The certified check of paths (module docstring).
 
     Args:
-      lengths, world, start, goal: the problem's arrays.
+      spec: the problem's static part (degree, n_samples, certify_budget are read).
+      arrays: the problem's data (certify_tol and margin, cm, may be traced).
       x: free parameters, shape (B, n_free).
-      degree, n_samples: static sizes.
-      certify_tol, margin: cm, scalars (may be traced).
-      budget: pieces a path tests before none of its pieces is split (static).
 
     Returns:
       ``CertifiedCheck`` of arrays of shape (B,).
     """
+    degree, n_samples, budget = spec.degree, spec.n_samples, spec.certify_budget
+    lengths, world, start, goal = arrays.lengths, arrays.world, arrays.start, arrays.goal
+    motion = _Motion(lengths, world, start, goal, x)
     dtype = x.dtype
     step = 1.0 / (n_samples - 1)
-    tol = jnp.asarray(certify_tol, dtype)
-    margin = jnp.asarray(margin, dtype)
+    tol = jnp.asarray(arrays.certify_tol, dtype)
+    margin = jnp.asarray(arrays.margin, dtype)
     nearest = path.run_fold(_nearest_fold(lengths, world, x), start, goal, x, degree,
                             n_samples)
     sample_witness = ~(nearest >= 0)
     open_rows = jnp.argsort(sample_witness, stable=True).astype(jnp.int32)
-    windows = _compacted_window_pass(lengths, world, start, goal, x, open_rows,
-                                     (~sample_witness).sum(dtype=jnp.int32), degree,
-                                     n_samples, margin)
+    windows = _compacted_window_pass(motion, open_rows, (~sample_witness).sum(dtype=jnp.int32),
+                                     degree, n_samples, margin)
     windows = windows._replace(nearest=jnp.where(sample_witness, nearest, windows.nearest))
     needs_work = ~sample_witness & (windows.failing != 0).any(axis=1)
 
     work_rows = jnp.argsort(~needs_work, stable=True).astype(jnp.int32)
     n_work = needs_work.sum(dtype=jnp.int32)
     bisect = functools.partial(
-        _bisect, lengths, world, start, goal, x, windows.failing, windows.closest, work_rows,
-        n_work, jnp.asarray(_derivative_tables(degree, n_samples), dtype), step, tol, margin,
-        budget)
+        _bisect, motion, _Work(windows.failing, windows.closest, work_rows, n_work),
+        jnp.asarray(_derivative_tables(degree, n_samples), dtype), step, tol, margin, budget)
     few, many = min(FEW_LANES, x.shape[0]), min(_wide_lanes(), x.shape[0])
     if few == many:
         out = bisect(many)

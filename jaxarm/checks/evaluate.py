@@ -84,9 +84,7 @@ def certify_rows(spec: ProblemSpec, arrays: ProblemArrays, rows) -> certified_li
     if rows.shape[0] == 0:  # the bisection's lanes need a path: check one, keep none
         one = certify_rows(spec, arrays, jnp.zeros((1, rows.shape[1]), rows.dtype))
         return jax.tree.map(lambda a: a[:0], one)
-    return certified_lib.check(arrays.lengths, arrays.world, arrays.start, arrays.goal, rows,
-                               spec.degree, spec.n_samples, arrays.certify_tol, arrays.margin,
-                               spec.certify_budget)
+    return certified_lib.check(spec, arrays, rows)
 
 
 def limit_rows(spec: ProblemSpec, arrays: ProblemArrays, rows) -> limits_lib.LimitCheck:

@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm._compile.jit import jit
+from jaxarm._compile.padding import round_up
 from jaxarm.checks.evaluate import vmapped_evaluate
 from jaxarm.model.problem import Problem, ProblemArrays, ProblemSpec
 from jaxarm.optim import constraints, evosax_adapter, pso
@@ -107,27 +108,37 @@ def run_restarts_of(keys, swarm: pso.Swarm, n_iters: int) -> RestartOutcome:
                           escape_iter, escape_x, history.T)
 
 
+class SearchData(NamedTuple):
+    """The data of a search besides the problem's: changing any of it compiles nothing."""
+
+    low: jax.Array  # shape=(n_free,), the init range
+    high: jax.Array  # shape=(n_free,)
+    seed: jax.Array  # shape=(), int32
+    restart_ids: jax.Array  # shape=(n_restarts,), int32; restart i uses fold_in(key(seed), i)
+    init_particles: jax.Array  # shape=(n_particles, n_free); its first n_given rows replace
+    #   the first random particles (data: one program for any number of given particles)
+    n_given: jax.Array  # shape=(), int32
+    constraint: jax.Array  # shape=(), int32: ``constraints.constraint_index`` of the rule
+    #   (data: every rule shares one program)
+
+
 def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOParams,
-                    rules: pso.SwarmRules, low, high, seed, restart_ids, init_particles,
-                    n_given, constraint, *, n_particles: int, n_iters: int) -> RestartOutcome:
-    """Run the PSO restarts numbered ``restart_ids`` (pure; ``compiled_search`` is its jit).
+                    rules: pso.SwarmRules, data: SearchData, *, n_particles: int,
+                    n_iters: int) -> RestartOutcome:
+    """Run the PSO restarts numbered ``data.restart_ids`` (pure; ``compiled_search`` is its
+    jit).
 
     Args:
       spec: static problem part; arrays: its data.
       params, rules: ``PSOConfig.params()`` and ``.rules()``, or an evosax
         ``evosax_adapter.StrategyConfig``'s (``rules`` is then the config itself).
-      low, high: init range, shape (n_free,).
-      seed: int32 scalar.
-      restart_ids: int32, shape (n_restarts,); restart i uses ``fold_in(key(seed), i)``.
-      init_particles: shape (n_particles, n_free); its first ``n_given`` rows replace the
-        first random particles (data: one program for any number of given particles).
-      n_given: int32 scalar.
-      constraint: int32 scalar, ``constraints.constraint_index`` of the rule (data: every
-        rule shares one program).
+      data: ``SearchData``.
+      n_particles, n_iters: static sizes.
 
     Returns:
       ``RestartOutcome`` with leading axis n_restarts.
     """
+    low, high, seed, restart_ids, init_particles, n_given, constraint = data
     evaluate = vmapped_evaluate(spec)
 
     def measure(x):
@@ -182,8 +193,7 @@ def padded_count(n_restarts: int) -> int:
     differently for batches of a few restarts, which would change the last bits of a restart's
     fitness with the number of restarts beside it.
     """
-    block = RESTART_BLOCK * len(jax.devices())
-    return -(-n_restarts // block) * block
+    return round_up(n_restarts, RESTART_BLOCK * len(jax.devices()))
 
 
 # The programs this process has run (``run_restarts``), to tell a user when a call compiles.
@@ -210,9 +220,9 @@ def to_host(array: jax.Array) -> np.ndarray:
     return np.asarray(multihost_utils.process_allgather(array, tiled=True))
 
 
-def run_restarts(problem: Problem, config: pso.PSOConfig, constraint: str, n_particles: int,
-                 n_iters: int, seed: int, first_restart: int, n_restarts: int,
-                 init_particles=None) -> RestartOutcome:
+def run_restarts(problem: Problem, config: pso.PSOConfig | evosax_adapter.StrategyConfig,
+                 constraint: str, *, n_particles: int, n_iters: int, seed: int,
+                 first_restart: int, n_restarts: int, init_particles=None) -> RestartOutcome:
     """The compiled search for restarts ``first_restart ..``, as NumPy arrays."""
     # NumPy arguments: converting them with jax.numpy compiled a small program each, per process
     low, high = (np.asarray(b, dtype=jnp.result_type(float)) for b in problem.bounds())
@@ -220,10 +230,9 @@ def run_restarts(problem: Problem, config: pso.PSOConfig, constraint: str, n_par
     if init_particles is not None:
         n_given = len(init_particles)
         given[:n_given] = init_particles
-    outcome = compiled_search(
-        problem.spec, problem.arrays, config.params(), config.rules(), low, high,
-        np.int32(seed), restart_ids(first_restart, n_restarts), given, np.int32(n_given),
-        np.int32(constraint_index(constraint)), n_particles=n_particles, n_iters=n_iters,
-    )
+    data = SearchData(low, high, np.int32(seed), restart_ids(first_restart, n_restarts), given,
+                      np.int32(n_given), np.int32(constraint_index(constraint)))
+    outcome = compiled_search(problem.spec, problem.arrays, config.params(), config.rules(),
+                              data, n_particles=n_particles, n_iters=n_iters)
     _RUN_PROGRAMS.add(_program_key(problem, config, n_particles, n_iters, n_restarts))
     return RestartOutcome(*(to_host(a)[:n_restarts] for a in outcome))
