@@ -166,7 +166,8 @@ def build_parser() -> argparse.ArgumentParser:
                                 description="Escape-probability study: every method over the "
                                             "same seeds, with 95 % Wilson intervals.")
     _add_search_options(study)
-    study.add_argument("--restarts", type=_positive, default=500, help="restarts per method (500); restart i is seeded by (--seed, i)")
+    study.add_argument("--restarts", type=_positive, default=500,
+                       help="restarts per method (500); restart i is seeded by (--seed, i)")
     study.add_argument("--methods", default="A,B,C",
                        help="comma-separated: A, B, C, A-ring (preset A, ring topology), "
                             "A-global-ring (the global best for 5 %% of the iterations, then the "

@@ -188,7 +188,7 @@ def plot_escape_curves(study, ax=None, title: str | None = None):
     return figure
 
 
-def plot_feasible_map(problem: Problem, x, dims=(0, 1), resolution: int = 121, bounds=None,
+def plot_feasible_map(problem: Problem, x, dims=(0, 1), *, resolution: int = 121, bounds=None,
                       best=None, ax=None, title: str | None = None):
     """Fitness on the plane through ``x`` spanned by free coefficients ``dims``; paths that
     collide (fitness 0) in grey. Answers "what does the feasible set look like?" (paper 11.3).

@@ -68,7 +68,7 @@ def _print(text: str) -> None:
     tqdm.write(text, file=sys.stdout)
 
 
-def reproduce_paper(out_dir="results", quick: bool = False, n_restarts: int | None = None,
+def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int | None = None,
                     suite: list[str] | None = None, suite_restarts: int | None = None,
                     degrees=(6, 7, 8), log: Callable[[str], None] = _print,
                     progress: bool | None = None, workers: int | None = None):
@@ -95,7 +95,8 @@ def reproduce_paper(out_dir="results", quick: bool = False, n_restarts: int | No
     """
     began = time.perf_counter()
     # Every name and size is checked before the first study: a typo fails in a second.
-    n_restarts = positive_int("n_restarts", n_restarts) if n_restarts is not None else (100 if quick else 500)
+    n_restarts = (positive_int("n_restarts", n_restarts) if n_restarts is not None
+                  else (100 if quick else 500))
     suite_restarts = (positive_int("suite_restarts", suite_restarts) if suite_restarts is not None
                    else (50 if quick else 200))
     suite = _suite_problems(list(scenario_files.available()) if suite is None else suite)
@@ -330,7 +331,8 @@ def _reconstruction_section(report: _Report, case1, case2, case1_study) -> None:
     errors = [abs(v.fitness - v.published.fitness) / v.published.fitness for v in case1_verdicts]
     report.add(
         "## How the scenarios were reconstructed", "",
-        "`jaxarm.paper.reconstruct` fitted case 1's start and goal postures to Table 2: fitness depends "
+        "`jaxarm.paper.reconstruct` fitted case 1's start and goal postures to Table 2: fitness "
+        "depends "
         "only on the joint displacement, so with the end-effector held at (50, -10) and (50, 40) "
         "the two end-effector orientations and elbows are the unknowns "
         f"(fitted: start phi = {_orientation(case1.start):.4f} rad, goal phi = "
@@ -488,7 +490,8 @@ def _suite_problems(names) -> list:
     a bad name or file fails first."""
     if isinstance(names, str) or not names:
         raise ValueError(f"suite must be a non-empty list of scenario names, got {names!r}")
-    return share_capacities(scenario_files.load_scenario(name, collision="sampled") for name in names)
+    return share_capacities(scenario_files.load_scenario(name, collision="sampled")
+                            for name in names)
 
 
 def _shared_chunk(n_restarts: int, suite_restarts: int) -> int:
@@ -581,7 +584,8 @@ def _rules_section(report: _Report, problems: list, n_restarts: int, chunk: int,
     methods, evosax_note = rule_methods()
     report.add(
         "## Constraint rules compared (preset A, and evosax strategies)", "",
-        f"{n_restarts} seeds per row, the paper's sampled check. Rules (`jaxarm.optim.constraints`): the "
+        f"{n_restarts} seeds per row, the paper's sampled check. Rules "
+        "(`jaxarm.optim.constraints`): the "
         "paper's death penalty, feasibility rules, the epsilon-constrained comparison and an "
         "adaptive penalty; *ring* rows use the lbest ring topology instead of the global best, "
         "*global-ring* the global best for the first 5 % of the iterations and the ring after; "
