@@ -1,6 +1,8 @@
 """The sampled check and the window bounds (``jaxarm.checks.collision``) against shapely and dense
 grids."""
 
+import math
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -11,7 +13,12 @@ from random_worlds import random_world_problems
 import jaxarm
 from jaxarm.checks import collision
 from jaxarm.model import path
-from jaxarm.testing import link_segments, oracle_path_collides, shapely_obstacles
+from jaxarm.testing import (
+    link_segments,
+    oracle_path_collides,
+    oracle_separation,
+    shapely_obstacles,
+)
 
 
 def test_sampled_check_agrees_with_shapely_on_the_same_samples(rng):
@@ -110,3 +117,63 @@ def test_window_speed_bounds_hold_on_a_dense_grid(rng, degree):
             assert np.all(true <= bound * (1 + 1e-12)), s
             worst_ratio = max(worst_ratio, float((true / bound).max()))
     assert worst_ratio > 0.9  # and not uselessly loose
+
+
+def test_hull_separation_is_a_lower_bound_on_the_shapely_distance_of_the_hull(rng):
+    """The separating-axis gap between the convex hull of four points and the nearest obstacle
+    never exceeds shapely's distance, over random worlds and hulls near their obstacles, and is
+    not uselessly loose: near the distance for the typical hull apart from its obstacles."""
+    ratios = []
+    for problem in random_world_problems(rng, 40, collision="certified"):
+        corners = rng.uniform(-60, 60, (200, 1, 2)) + rng.normal(0, 6, (200, 4, 2))
+        ours = np.asarray(collision.hull_separation(
+            problem.arrays.world, [(jnp.asarray(corners[:, i, 0]), jnp.asarray(corners[:, i, 1]))
+                                   for i in range(4)]))
+        circles, polygons = shapely_obstacles(problem.world)
+        hulls = [shapely.MultiPoint(c).convex_hull for c in corners]
+        oracle = np.full(len(hulls), np.inf)
+        for center, radius in circles:
+            oracle = np.minimum(oracle, shapely.distance(hulls, center) - radius)
+        for polygon in polygons:
+            oracle = np.minimum(oracle, shapely.distance(hulls, polygon))
+        assert np.all(ours <= np.maximum(oracle, 0.0) + 1e-3)
+        assert np.all(np.isinf(ours) == np.isinf(oracle))  # no obstacles
+        apart = np.isfinite(oracle) & (oracle > 1e-3)
+        ratios.append(ours[apart] / oracle[apart])
+    ratio = np.concatenate(ratios)
+    assert len(ratio) > 2000 and np.median(ratio) > 0.95 and np.mean(ratio > 0.5) > 0.9, (
+        len(ratio), np.percentile(ratio, [10, 50]))
+
+
+@pytest.mark.parametrize("degree", [6, 8])
+def test_sweep_bound_holds_on_a_dense_grid(rng, degree):
+    """Over a piece ``|r - c| <= radius``, each link's distance to the nearest obstacle (shapely,
+    41 times) is at least minus its ``sweep_shortfalls`` (margin 0), and the bound proves
+    many pieces of moderate radius."""
+    problem = random_world_problems(rng, 1, collision="certified")[0]
+    start, goal = np.asarray(problem.start), np.asarray(problem.goal)
+    proved = 0
+    with jax.enable_x64(True):
+        for _ in range(8):
+            x = rng.uniform(-60, 60, (40, 3 * (degree - 5)))
+            centre, radius = rng.uniform(0.05, 0.95), rng.choice([0.002, 0.01, 0.04])
+            about_centre = [
+                [a[:, 0] / math.factorial(m) for a in path.joint_angle_list(
+                    start, goal, jnp.asarray(x), path.basis_values(degree, [centre], m), order=m)]
+                for m in range(degree + 1)]
+            bound = -np.stack(collision.sweep_shortfalls(problem.arm.lengths,
+                                                         problem.arrays.world, about_centre,
+                                                         radius), axis=-1)  # (paths, links)
+            dense = np.linspace(centre - radius, centre + radius, 41)
+            theta = np.asarray(path.joint_angles(start, goal, jnp.asarray(x),
+                                                 path.basis_values(degree, dense)))
+            absolute = np.cumsum(theta, axis=-1)  # (paths, times, links)
+            lengths = np.asarray(problem.arm.lengths)
+            joints = np.concatenate([np.zeros(absolute.shape[:-1] + (1, 2)), np.cumsum(
+                lengths[:, None] * np.stack([np.cos(absolute), np.sin(absolute)], -1), -2)], -2)
+            true, _ = oracle_separation(problem.world, joints[..., :-1, :].reshape(-1, 2),
+                                        joints[..., 1:, :].reshape(-1, 2))
+            true = true.reshape(absolute.shape).min(axis=1)  # (paths, links)
+            assert np.all(true >= bound - 1e-6), (true - bound).min()
+            proved += np.sum(bound > 0)
+    assert proved > 100, proved

@@ -102,6 +102,7 @@ class CertifiedCheck(NamedTuple):
     colliding: jax.Array  # bool: a time where a link is closer than the margin was found
     clearance: jax.Array  # cm: see ``Certificate``
     exhausted: jax.Array  # bool: the budget ran out before a verdict
+    pieces: jax.Array  # int32: pieces of windows the bisection tested (0: none needed)
 
 
 class _Motion(NamedTuple):
@@ -255,6 +256,16 @@ class _Piece(NamedTuple):
     offset: jax.Array  # shape=(n,), int32, in [0, 2**level)
 
 
+class _PieceTest(NamedTuple):
+    """What the test of pieces found, each field of shape (n,)."""
+
+    shortfall: jax.Array  # max over links of the better bound's shortfall: <= 0 proves free
+    first_order: jax.Array  # max_k (delta_k - (c_k - margin)): the speed bound's shortfall
+    second_order: jax.Array  # max_k (e_k - (h_k - margin)): the sweep bound's (+inf: none)
+    nearest: jax.Array  # smallest distance of a link to an obstacle at the centre (cm)
+    radius: jax.Array  # the piece's half-width in r
+
+
 def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin):
     """Shortfall and nearest clearance of pieces, with tight bounds (module docstring, stage 2).
 
@@ -264,8 +275,7 @@ def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin):
       step: the sample spacing h.
 
     Returns:
-      ``(shortfall, nearest, radius)``, each of shape (n,): ``max_k (delta_k - c_k)``, the
-      smallest distance of a link to an obstacle at the centre, and the piece's half-width.
+      ``_PieceTest`` of arrays of shape (n,).
     """
     lengths, world, start, goal, x = motion
     dtype = x.dtype
@@ -291,10 +301,13 @@ def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin):
     reach_radius = radius * (1.0 + 2.0**-20)
     speed = [sum(m * jnp.abs(about_centre[m][j]) * reach_radius ** (m - 1)
                  for m in range(1, degree + 1)) for j in range(n_joints)]
-    shortfall, nearest = collision_lib.window_shortfall(
-        lengths, world, about_centre[0], speed, reach_radius, margin,
-        exact=True)
-    return shortfall, nearest, radius
+    first, nearest = collision_lib.link_shortfalls(lengths, world, about_centre[0], speed,
+                                                    reach_radius, margin, exact=True)
+    second = collision_lib.sweep_shortfalls(lengths, world, about_centre, reach_radius, margin)
+    largest = functools.partial(functools.reduce, jnp.maximum)
+    return _PieceTest(shortfall=largest([jnp.minimum(a, b) for a, b in zip(first, second)]),
+                      first_order=largest(first), second_order=largest(second),
+                      nearest=nearest, radius=radius)
 
 
 class _Verdict(NamedTuple):
@@ -409,11 +422,12 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
         # computed the pieces' Taylor shift and speed bound again inside each of the ~16
         # fusions reading the results (benchmarks/RESULTS.md, same section); no lane reads
         # them when none is active.
-        shortfall, nearest, radius = jax.lax.cond(
+        test = jax.lax.cond(
             lanes.active.any(),
             lambda: _test_pieces(_Motion(lengths, world, start, goal, lanes.x), piece, tables,
                                  step, margin),
-            lambda: (jnp.zeros(n_lanes, dtype),) * 3)
+            lambda: _PieceTest(*(jnp.zeros(n_lanes, dtype),) * 5))
+        shortfall, nearest, radius = test.shortfall, test.nearest, test.radius
         # Pieces wholly outside [0, 1] (before r = 0 or after r = 1) need no test.
         half = jnp.left_shift(1, piece.level) >> 1  # 2**(level - 1); 0 at level 0
         outside = (piece.level > 0) & (
@@ -435,10 +449,13 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
             proved=jnp.minimum(verdict.proved, jnp.where(tested & free, -shortfall, jnp.inf)),
             violation=verdict.violation + jnp.where(witness | undecided,
                                                     (shortfall + tol) * (2 * radius), 0.0))
-        # Descend: to the level where the speed bound should fit inside the clearance
-        # (it shrinks about linearly with the radius), leaving right siblings pending.
+        # Descend: to the level where one of the bounds should fit inside the clearance
+        # (the speed bound shrinks about linearly with the radius, the sweep bound about
+        # quadratically), leaving right siblings pending.
         clear = jnp.maximum(nearest - margin, tol)
-        jump = jnp.ceil(jnp.log2(1.0 + jnp.maximum(shortfall, 0.0) / clear))
+        jump = jnp.minimum(
+            jnp.ceil(jnp.log2(1.0 + jnp.maximum(test.first_order, 0.0) / clear)),
+            jnp.ceil(0.5 * jnp.log2(1.0 + jnp.maximum(test.second_order, 0.0) / clear)))
         jump = jnp.clip(jnp.nan_to_num(jump, nan=1.0), 1, MAX_LEVELS - piece.level
                         ).astype(jnp.int32)
         descend = _Piece(sample=piece.sample, level=piece.level + jump,
@@ -540,4 +557,5 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x) -> CertifiedCheck:
     seen = jnp.where(decided, jnp.minimum(windows.nearest, out.nearest), windows.nearest)
     clearance = jnp.where(free, margin + proved, seen)
     return CertifiedCheck(violation=violation, free=free, colliding=colliding,
-                          clearance=clearance, exhausted=exhausted)
+                          clearance=clearance, exhausted=exhausted,
+                          pieces=jnp.where(needs_work, out.tested, 0))

@@ -217,7 +217,7 @@ def check_polygon(field: str, polygon) -> tuple[tuple[float, float], ...]:
     return tuple((float(x), float(y)) for x, y in vertices)
 
 
-def _leading(values, ndim: int):
+def leading_slots(values, ndim: int):
     """Obstacle data of shape (n_slots,) as (n_slots, 1, ..., 1) to broadcast against (...).
 
     Slots lead so that the innermost axis stays the caller's (the samples): elementwise loops
@@ -294,17 +294,17 @@ def polygon_overlap_gap_xy(sx, sy, ex, ey, world: WorldArrays):
     gap = jnp.full((normals.shape[0],) + sx.shape, -jnp.inf, dtype)
     along_min = along_max = None
     for v in range(normals.shape[-2]):
-        nx, ny = _leading(normals[:, v, 0], n), _leading(normals[:, v, 1], n)
+        nx, ny = leading_slots(normals[:, v, 0], n), leading_slots(normals[:, v, 1], n)
         a = sx * nx + sy * ny
         b = ex * nx + ey * ny
-        edge_gap = jnp.maximum(jnp.minimum(a, b) - _leading(high[:, v], n),
-                               _leading(low[:, v], n) - jnp.maximum(a, b))
-        gap = jnp.maximum(gap, jnp.where(_leading(world.edge_valid[:, v], n), edge_gap, -jnp.inf))
-        along = mx * _leading(vertices[:, v, 0], n) + my * _leading(vertices[:, v, 1], n)
+        edge_gap = jnp.maximum(jnp.minimum(a, b) - leading_slots(high[:, v], n),
+                               leading_slots(low[:, v], n) - jnp.maximum(a, b))
+        gap = jnp.maximum(gap, jnp.where(leading_slots(world.edge_valid[:, v], n), edge_gap, -jnp.inf))
+        along = mx * leading_slots(vertices[:, v, 0], n) + my * leading_slots(vertices[:, v, 1], n)
         along_min = along if along_min is None else jnp.minimum(along_min, along)
         along_max = along if along_max is None else jnp.maximum(along_max, along)
     gap = jnp.maximum(gap, jnp.maximum(along_min - offset, offset - along_max))
-    return jnp.where(_leading(world.polygon_valid, n), gap, jnp.inf)
+    return jnp.where(leading_slots(world.polygon_valid, n), gap, jnp.inf)
 
 
 def _edge_distance(sx, sy, ex, ey, vx, vy, wx, wy, valid):
@@ -349,11 +349,11 @@ def polygon_separation_xy(sx, sy, ex, ey, world: WorldArrays, vertex_axis: bool 
         distance = jnp.full(gap.shape, jnp.inf, gap.dtype)
         for v in range(vertices.shape[-2]):  # static and small: see polygon_overlap_gap_xy
             distance = jnp.minimum(distance, _edge_distance(
-                sx, sy, ex, ey, *(_leading(a[:, v, i], n) for a in (vertices, following)
+                sx, sy, ex, ey, *(leading_slots(a[:, v, i], n) for a in (vertices, following)
                                   for i in (0, 1)),
-                _leading(world.edge_valid[:, v], n)))
+                leading_slots(world.edge_valid[:, v], n)))
     signed = jnp.where(gap > 0, distance, gap)
-    return jnp.where(_leading(world.polygon_valid, n), signed, jnp.inf)
+    return jnp.where(leading_slots(world.polygon_valid, n), signed, jnp.inf)
 
 
 def separation(start, end, world: WorldArrays):
