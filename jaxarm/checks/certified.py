@@ -21,9 +21,20 @@ Three stages, all batched over paths.
    the separating-axis gap for polygons) and records which windows fail as a bit mask.
 
 2. **Bisection** of the failing windows of every path without a witness. Each piece is tested
-   about its own centre with tight bounds: the exact signed distance of every link, and the
-   exact Taylor expansion of the joint speed on the piece (the path's derivatives of every
-   order at the centre). A piece ends as
+   about its own centre with two bounds on every link's distance to the obstacles over the
+   piece, and the better of the two counts:
+
+   - *first order*: the exact signed distance at the centre, less the radius times a bound on
+     the link's speed (the exact Taylor expansion of the joint speeds on the piece, from the
+     path's derivatives of every order at the centre);
+   - *second order* (``collision.sweep_shortfalls``): the separating-axis gap between the
+     obstacles and the convex hull of the link's end points moved along their velocities,
+     less ``radius^2 / 2`` times a bound on the acceleration of the link's points. A link
+     sweeping past an obstacle at a small clearance c is proved with pieces of radius about
+     ``sqrt(c)`` instead of c, so a path the swarm drives against an obstacle costs a few
+     pieces instead of a number growing as ``1 / sqrt(c)``.
+
+   A piece ends as
 
    - *free*: shortfall <= 0;
    - *witness*: some link is closer than the margin at the centre (penetrates, for margin 0);
@@ -38,12 +49,9 @@ Three stages, all batched over paths.
    it, not with a fixed budget per path. The loop runs until its slowest path is decided, so
    few lanes suit few paths: on CPU it has ``FEW_LANES`` lanes; on an accelerator
    ``FEW_LANES`` when at most ``FEW_PATHS`` paths need bisecting, ``LANES`` otherwise (that
-   choice compiles the loop twice; it is untested on a GPU). Measured by hand on CPU,
-   paper-case-1: 1e4 random paths, 26 to bisect, 11 ms with 64 lanes against 78 ms with 1024;
-   4,687 near-optimal paths, 468 ms against 355 ms; a 1000-seed study 23 s against 19 s, but
-   each certified search program took about 4 s longer to compile with both. No piece of a
-   path is split once the path has tested ``budget`` pieces (pieces that need no split are still
-   tested), and pieces stop at ``MAX_LEVELS`` halvings; a path that needs a split past either is
+   choice compiles the loop twice; it is untested on a GPU). No piece of a path is split
+   once the path has tested ``budget`` pieces (pieces that need no split are still tested),
+   and pieces stop at ``MAX_LEVELS`` halvings; a path that needs a split past either is
    *exhausted*: neither free nor colliding, and counted (``Certificate.exhausted``).
 
 Pieces are located by integers (sample, level, offset) and expanded about their sample with
@@ -261,7 +269,7 @@ class _PieceTest(NamedTuple):
 
     shortfall: jax.Array  # max over links of the better bound's shortfall: <= 0 proves free
     first_order: jax.Array  # max_k (delta_k - (c_k - margin)): the speed bound's shortfall
-    second_order: jax.Array  # max_k (e_k - (h_k - margin)): the sweep bound's (+inf: none)
+    second_order: jax.Array  # max_k (e_k - (h_k - margin)): the sweep bound's shortfall
     nearest: jax.Array  # smallest distance of a link to an obstacle at the centre (cm)
     radius: jax.Array  # the piece's half-width in r
 

@@ -221,11 +221,12 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     that hull), and ``|E| <= e_k = radius^2 / 2 * max |X''|`` with ``|X''| <= sum_{i<=k} l_i
     (|phi_i''| + phi_i'^2)`` (``phi_i = theta_1 + ... + theta_i``; the bounds on ``|phi_i'|``
     and ``|phi_i''|`` over the piece come from its exact Taylor expansion). So link k's
-    distance to an obstacle is at least ``h_k - e_k``, with ``h_k`` a lower bound on the
-    hull's distance (``hull_separation``). A path that grazes an obstacle, its distance
-    ``c + a s^2`` near the closest approach, is proved with pieces of radius about
-    ``sqrt(c / a)``: a few pieces where the first-order bound (``link_shortfalls``) needs
-    ``1 / sqrt(c)`` of them.
+    signed distance to an obstacle (minus a penetration depth when they overlap) is at least
+    ``h_k - e_k``, with ``h_k`` the hull's separating-axis gap (``hull_separation``: where the
+    hull overlaps the obstacle it is at most minus the hull's penetration depth, which is at
+    least the linear part's). A path that grazes an obstacle, its distance ``c + a s^2`` near
+    the closest approach, is proved with pieces of radius about ``sqrt(c / a)``: a few pieces
+    where the first-order bound (``link_shortfalls``) needs ``1 / sqrt(c)`` of them.
 
     Args:
       lengths, world: the problem's arrays.
@@ -235,7 +236,7 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
       margin: the clearance to keep (cm).
 
     Returns:
-      A list of n_joints arrays of shape (...,); +inf where the hull may touch an obstacle.
+      A list of n_joints arrays of shape (...,).
     """
     degree = len(about_centre) - 1
     lengths = jnp.asarray(lengths, dtype=about_centre[0][0].dtype)
@@ -256,8 +257,7 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
             (x - radius * vx, y - radius * vy), (x + radius * vx, y + radius * vy),
             (next_x + radius * next_vx, next_y + radius * next_vy),
             (next_x - radius * next_vx, next_y - radius * next_vy)])
-        shortfalls.append(jnp.where(hull > 0, 0.5 * radius * radius * curvature
-                                    - (hull - margin), jnp.inf))
+        shortfalls.append(0.5 * radius * radius * curvature - (hull - margin))
         x, y, vx, vy = next_x, next_y, next_vx, next_vy
     return shortfalls
 
@@ -268,14 +268,17 @@ _CORNER_PAIRS = tuple(itertools.combinations(range(4), 2))  # every hull edge is
 
 @rank_promotion_allowed
 def hull_separation(world, corners: list):
-    """A lower bound on the distance from the convex hull of four points to the nearest
-    obstacle (cm; <= 0 where they may touch); +inf without obstacles.
+    """A lower bound on the signed distance from the convex hull of four points to the nearest
+    obstacle (cm; negative where they may overlap: at most minus the penetration depth);
+    +inf without obstacles.
 
     The largest gap between the projections of the hull and of an obstacle on a few axes
     (separating axes): the normals of the six segments between the corners (every hull edge is
     one of them) and, for polygons, their edge normals. A gap on any axis is at most the
-    distance, and on the axis normal to the hull edge facing an obstacle it is the distance:
-    the case of a link sweeping past an obstacle. Near a corner of both it can be less.
+    distance (where the sets overlap, every axis's overlap is at least the smallest
+    translation that parts them), and on the axis normal to the hull edge facing an obstacle
+    it is the distance: the case of a link sweeping past an obstacle. Near a corner of both it
+    can be less.
     (Exact distances, six segments' with a test for an obstacle inside the hull, cost the
     certified check about twice as much.)
 
