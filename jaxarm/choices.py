@@ -20,6 +20,13 @@ PRESET_NAMES = ("A", "B", "C")  # the paper's Table 2
 TOPOLOGY_SUFFIXES = {"-ring": "ring", "-global-ring": "global-ring"}
 PSO_METHODS = PRESET_NAMES + tuple(name + suffix for suffix in TOPOLOGY_SUFFIXES
                                    for name in PRESET_NAMES)
+# What ``solve`` and ``jaxarm solve`` run when no method is named: restarts of the ring-topology
+# swarm under feasibility rules, the search meant to find a collision-free path (measured on
+# every shipped scene by ``benchmarks/default_bench.py``). The paper's settings are one name
+# away: method "A" is its preset A with the death penalty, one swarm.
+DEFAULT_METHOD = "A-ring[inertia_end=0.4]"
+DEFAULT_CONSTRAINT = "feasibility"
+DEFAULT_RESTARTS = 8
 
 
 def split_methods(text: str) -> list[str]:

@@ -18,6 +18,9 @@ import tempfile
 from jaxarm.choices import (
     COLLISION_MODES,
     CONSTRAINTS,
+    DEFAULT_CONSTRAINT,
+    DEFAULT_METHOD,
+    DEFAULT_RESTARTS,
     LIMIT_UNITS,
     PSO_METHODS,
     split_methods,
@@ -130,14 +133,19 @@ def build_parser() -> argparse.ArgumentParser:
     solve = commands.add_parser("solve", help="search one scenario and print the best path",
                                 description="Run PSO restarts on a scenario; print a summary.")
     _add_search_options(solve)
-    solve.add_argument("--method", default="A", metavar="METHOD",
+    solve.add_argument("--method", metavar="METHOD",
                        help=f"the paper's preset, or one with the ring (A-ring) or "
                             f"global-then-ring (A-global-ring) topology: one of "
                             f"{', '.join(PSO_METHODS)}, optionally with PSOConfig fields "
                             f"changed in brackets, such as 'A-ring[inertia_end=0.4]', and a "
                             f"constraint rule after a colon ('A:feasibility'); or "
-                            f"evosax:<Strategy> (A)")
-    solve.add_argument("--restarts", type=_positive, default=1, help="independent swarms (1)")
+                            f"evosax:<Strategy>. Default: {DEFAULT_RESTARTS} restarts of "
+                            f"{DEFAULT_METHOD} with {DEFAULT_CONSTRAINT} rules, the search "
+                            f"meant to find a collision-free path; 'A' is the paper's preset "
+                            f"with its death penalty")
+    solve.add_argument("--restarts", type=_positive,
+                       help=f"independent swarms ({DEFAULT_RESTARTS} with the default method, "
+                            f"1 with a named one)")
     solve.add_argument("--refine", choices=("best", "all"),
                        help="polish with gradient steps after PSO: the best restart, or every "
                             "feasible one (default: no refinement)")
@@ -343,7 +351,8 @@ def _solve(args) -> None:
     _check_settings(args)
     from jaxarm.optim.methods import search_variant
 
-    search_variant(args.method, args.constraint)  # checked before the scenario is loaded
+    if args.method is not None:  # checked before the scenario is loaded
+        search_variant(args.method, args.constraint)
     problem = _load(args)
     limits = _timing_limits(args, problem)
     from jaxarm import plot
@@ -354,11 +363,13 @@ def _solve(args) -> None:
                     seed=args.seed, constraint=args.constraint,
                     refine={None: False, "best": True, "all": "all"}[args.refine])
     result = solve(problem, args.method, **settings)
-    print(f"{problem.name}: {args.restarts} restart(s) x {args.particles} particles x "
+    print(f"{problem.name}: {result.n_restarts} restart(s) x {args.particles} particles x "
           f"{args.iters} iterations")
     print(result.summary())
-    if args.json:
-        args.json.write_text(json.dumps(run_record(problem, args.method, settings, result),
+    if args.json:  # what ran, spelt out: solve(problem, method, **settings) repeats it
+        settings.update(n_restarts=result.n_restarts, constraint=result.constraint)
+        method = DEFAULT_METHOD if args.method is None else args.method
+        args.json.write_text(json.dumps(run_record(problem, method, settings, result),
                                         indent=2, allow_nan=False))
         print(f"wrote {args.json}")
     if args.plot:

@@ -11,6 +11,7 @@ import numpy as np
 
 from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import certify
+from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHOD, DEFAULT_RESTARTS
 from jaxarm.model.problem import Problem
 from jaxarm.optim import evosax_adapter, pso
 from jaxarm.optim.methods import search_variant
@@ -26,11 +27,13 @@ def exact_text(x) -> str:
                            for v in values) + "]"
 
 
-# Measured on death-trap under the certified check, 300 seeds each (benchmarks/RESULTS.md).
-NOTHING_ESCAPED = "\n".join([
-    "HINT     no restart found a collision-free path. On death-trap, where preset A with the",
-    "         death penalty never escaped, constraint \"feasibility\" did in 49 %, and with it",
-    "         method \"A-ring[inertia_end=0.4]\" in 93 % and degree 8 in 100 %"])
+def _nothing_escaped(result: Result) -> str:
+    """The summary's line when no restart found a collision-free path: what ran, what to try."""
+    return (f"HINT     none of {result.n_restarts} restart(s) of {result.method} under "
+            f"{result.constraint} rules (degree {result.degree}) found a collision-free path: "
+            "try more restarts (n_restarts), feasibility rules if they were not used, or a "
+            "higher degree (problem.replace(degree=8)); the best path found collides by "
+            f"{float(result.restarts.best_violation[result.best_restart]):.3g} cm")
 
 
 class Result(NamedTuple):
@@ -48,6 +51,7 @@ class Result(NamedTuple):
     config: pso.PSOConfig | evosax_adapter.StrategyConfig
     constraint: str
     collision: str  # the collision mode the search used
+    degree: int  # the path degree searched (the problem's)
     seed: int
     seconds: float  # wall time of the call, compilation included
 
@@ -93,7 +97,8 @@ class Result(NamedTuple):
         escaped = int(np.sum(self.restarts.escape_iter >= 0))
         return "\n".join([
             f"method {self.method} ({self.config.velocity_rule}), constraint {self.constraint}, "
-            f"{self.collision} collision check, seed {self.seed}",
+            f"{self.n_restarts} restart(s), degree {self.degree}, {self.collision} collision "
+            f"check, seed {self.seed}",
             f"best a   {exact_text(self.best_x)}",
             f"fitness  {self.best_fitness:.5g}  feasible {self.feasible}  "
             f"certified {self.certified}",
@@ -102,7 +107,7 @@ class Result(NamedTuple):
               if self.feasible and not self.certified else []),
             f"escape   iteration {self.escape_iter} (best restart); "
             f"{escaped}/{self.n_restarts} restarts escaped",
-            *([NOTHING_ESCAPED] if not self.feasible else []),
+            *([_nothing_escaped(self)] if not self.feasible else []),
             f"time     {self.seconds:.2f} s",
         ])
 
@@ -126,18 +131,21 @@ class Result(NamedTuple):
             "config": self.config._asdict(),
             "constraint": self.constraint,
             "collision": self.collision,
+            "degree": self.degree,
             "seed": self.seed,
             "seconds": self.seconds,
         }
 
     @classmethod
-    def from_dict(cls, data: dict) -> "Result":
+    def from_dict(cls, data: dict) -> Result:
         """The ``Result`` that ``to_dict`` wrote (arrays as float64 / int32, NaN kept)."""
         integer = {"escape_iter"}
         restarts = RestartOutcome(**{
             name: np.asarray(values, dtype=np.int32 if name in integer else np.float64)
             for name, values in data["restarts"].items()})
-        fields = {name: data[name] for name in cls._fields if name != "restarts"}
+        # (records written before ``degree`` was kept have none)
+        fields = {name: data.get(name) if name == "degree" else data[name]
+                  for name in cls._fields if name != "restarts"}
         config = fields["config"]
         fields["config"] = (evosax_adapter.StrategyConfig(**config) if "strategy" in config
                             else pso.PSOConfig(**config))
@@ -148,7 +156,7 @@ class Result(NamedTuple):
         return json.dumps(self.to_dict(), allow_nan=False)
 
     @classmethod
-    def from_json(cls, text: str) -> "Result":
+    def from_json(cls, text: str) -> Result:
         """The ``Result`` in JSON text: ``to_json``'s, or the ``result`` of a ``solve --json``
         record (``load_run`` gives that record's problem and settings too)."""
         data = json.loads(text)
@@ -163,11 +171,17 @@ def _plain(array) -> list:
     return array.tolist()
 
 
-def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
-          n_particles: int = N_PARTICLES, n_iters: int = N_ITERS, n_restarts: int = 1,
+def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
+          n_particles: int = N_PARTICLES, n_iters: int = N_ITERS, n_restarts: int | None = None,
           seed: int = 0, constraint: str | None = None, init_particles=None,
           refine: bool | str = False) -> Result:
     """Search the problem's free coefficients with PSO, ``n_restarts`` independent swarms at once.
+
+    With no method, ``DEFAULT_RESTARTS`` (8) swarms of ``DEFAULT_METHOD`` (preset A with the
+    ring topology, inertia falling to 0.4) under ``DEFAULT_CONSTRAINT`` (feasibility rules),
+    and the best of them: the search meant to find a collision-free path. Naming a method runs
+    that method, and by default one swarm, as the paper did: ``solve(problem, "A")`` is the
+    paper's preset A with its death penalty.
 
     Restart i is seeded by ``fold_in(key(seed), i)``; its result does not depend on
     ``n_restarts`` (see ``jaxarm.optim.restarts``).
@@ -177,14 +191,15 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
       method: a method name (``jaxarm.optim.methods``): "A", "B", "C" (the paper's Table 2
         presets), "A-ring", "A-ring[inertia_end=0.4]" (fields changed in brackets), an
         evosax strategy "evosax:CMA_ES" (optional dependency), each optionally followed by
-        ":<constraint>" ("A:feasibility"); or a ``PSOConfig``.
+        ":<constraint>" ("A:feasibility"); or a ``PSOConfig``; None: the default above.
       n_particles: swarm size (paper: 20).
       n_iters: PSO updates (paper: 100); iteration 0 is the initial swarm.
-      n_restarts: independent swarms.
+      n_restarts: independent swarms (default: 8 with the default method, 1 with a named
+        one).
       seed: integer seed in [0, 2**31).
       constraint: "death" (paper eq. 17), "feasibility" (feasibility rules), "epsilon" or
         "penalty" (``jaxarm.optim.constraints``); default: the rule ``method`` names, else
-        "death". ``solve(p, "A:feasibility")`` is ``solve(p, "A", constraint="feasibility")``;
+        "death" (feasibility rules with the default method). ``solve(p, "A:feasibility")`` is ``solve(p, "A", constraint="feasibility")``;
         a method that names another rule than ``constraint`` is a ValueError.
       init_particles: optional particles, shape (n_given, n_free), put at the start of every
         restart's initial swarm (paper Table 6).
@@ -201,6 +216,11 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
       (True, True, (3,))
     """
     began = time.perf_counter()
+    if method is None:
+        method = DEFAULT_METHOD
+        constraint = DEFAULT_CONSTRAINT if constraint is None else constraint
+        n_restarts = DEFAULT_RESTARTS if n_restarts is None else n_restarts
+    n_restarts = 1 if n_restarts is None else n_restarts
     variant = search_variant(method, constraint)
     config, constraint = variant.config, variant.constraint
     if isinstance(config, evosax_adapter.StrategyConfig) and init_particles is not None:
@@ -223,7 +243,8 @@ def solve(problem: Problem, method: str | pso.PSOConfig = "A", *,
                               or bool(certify(problem, outcome.best_x[best]).free))
     return Result(restarts=outcome, best_restart=best, certified=certified,
                   pso_best_fitness=pso_best, method=variant.name, config=config,
-                  constraint=constraint, collision=problem.collision, seed=int(seed),
+                  constraint=constraint, collision=problem.collision, degree=problem.degree,
+                  seed=int(seed),
                   seconds=time.perf_counter() - began)
 
 

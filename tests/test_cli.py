@@ -8,6 +8,7 @@ import tomli_w
 
 import jaxarm
 from jaxarm import choices, cli
+from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHOD, DEFAULT_RESTARTS
 
 # The search sizes of every solve and study test here: with them (and restart counts in one
 # padded block) they run one compiled search program.
@@ -42,6 +43,15 @@ def test_cli_solve_writes_json_and_plot(capsys, tmp_path):
     again = jaxarm.solve(saved.problem, saved.method, **saved.settings)
     np.testing.assert_array_equal(again.restarts.best_x, loaded.restarts.best_x)
     assert (tmp_path / "r.png").stat().st_size > 5000
+
+
+def test_cli_solve_without_a_method_runs_the_default_search_and_says_so(capsys):
+    code, out, _ = run_cli(capsys, "solve", "paper-case-2", *SEARCH_SIZES)
+    assert code == 0
+    assert f"{DEFAULT_RESTARTS} restart(s) x 6 particles" in out
+    assert f"method {DEFAULT_METHOD} (inertia), constraint {DEFAULT_CONSTRAINT}" in out
+    code, out, _ = run_cli(capsys, "solve", "paper-case-2", *SEARCH_SIZES, "--method", "A")
+    assert code == 0 and "1 restart(s) x 6 particles" in out and "constraint death" in out
 
 
 def test_cli_solve_json_describes_its_run_well_enough_to_repeat_it(capsys, tmp_path):

@@ -160,7 +160,7 @@ def test_two_processes_return_what_one_process_returns(case2, tmp_path):
     env.pop("XLA_FLAGS", None)
     processes = [subprocess.Popen(
         [sys.executable, "-m", "jaxarm", "--coordinator", f"127.0.0.1:{port}",
-         "--num-processes", "2", "--process-id", str(i), "solve", "paper-case-2",
+         "--num-processes", "2", "--process-id", str(i), "solve", "paper-case-2", "--method", "A",
          "--collision", "sampled", "--particles", "8", "--iters", "12", "--restarts", "7",
          "--seed", "4", "--constraint", "feasibility", "--json", str(out)],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for i in (0, 1)]

@@ -8,6 +8,7 @@ import pytest
 from sizes import SMALL
 
 import jaxarm
+from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHOD, DEFAULT_RESTARTS
 from jaxarm.optim import pso
 from jaxarm.paper import published
 from jaxarm.study import wilson_interval
@@ -40,8 +41,40 @@ def test_result_fields_are_consistent(case2):
     # what escapes more often is suggested only when nothing escaped
     assert ("HINT" in result.summary()) == (not result.feasible)
     restarts = result.restarts
-    colliding = restarts._replace(best_violation=np.ones_like(restarts.best_violation))
-    assert "degree 8 in 100 %" in result._replace(restarts=colliding).summary()
+    colliding = restarts._replace(best_violation=np.full_like(restarts.best_violation, 0.25),
+                                  escape_iter=np.full_like(restarts.escape_iter, -1),
+                                  best_fitness=np.zeros_like(restarts.best_fitness))
+    hint = result._replace(restarts=colliding).summary()
+    assert "none of 5 restart(s) of A under death rules (degree 6)" in hint
+    assert "collides by 0.25 cm" in hint
+
+
+def test_the_default_search_is_the_documented_portfolio_and_says_so(case2):
+    result = jaxarm.solve(case2, **SMALL)
+    assert (result.method, result.constraint, result.n_restarts, result.degree) == (
+        DEFAULT_METHOD, DEFAULT_CONSTRAINT, DEFAULT_RESTARTS, case2.degree)
+    assert f"{DEFAULT_RESTARTS} restart(s), degree 6" in result.summary()
+    spelt_out = jaxarm.solve(case2, DEFAULT_METHOD, n_restarts=DEFAULT_RESTARTS,
+                             constraint=DEFAULT_CONSTRAINT, **SMALL)
+    np.testing.assert_array_equal(result.restarts.best_x, spelt_out.restarts.best_x)
+    # a named method is that method, one swarm, its own rule: the paper's settings
+    paper = jaxarm.solve(case2, "A", **SMALL)
+    assert (paper.method, paper.constraint, paper.n_restarts) == ("A", "death", 1)
+    # the default method under another rule, and with more restarts
+    other = jaxarm.solve(case2, constraint="death", n_restarts=3, **SMALL)
+    assert (other.method, other.constraint, other.n_restarts) == (DEFAULT_METHOD, "death", 3)
+    # a record written before the degree was kept still reads
+    record = result.to_dict()
+    del record["degree"]
+    assert jaxarm.Result.from_dict(record).degree is None
+
+
+@pytest.mark.slow
+def test_the_default_search_finds_a_certified_path_on_death_trap():
+    """Where preset A with the death penalty never escapes (benchmarks/default_bench.py runs
+    every scene and ten seeds)."""
+    result = jaxarm.solve(jaxarm.load_scenario("death-trap"))
+    assert result.certified and result.collision == "certified"
 
 
 def test_certified_search_returns_certified_paths(case2):

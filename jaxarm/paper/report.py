@@ -76,7 +76,10 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
 
     Args:
       out_dir: output folder (created).
-      quick: smaller studies (100 seeds on case 1, 50 per suite scenario) for a demo.
+      quick: smaller studies (100 seeds on case 1, 50 per suite scenario) for a demo, and the
+        sections beyond the paper under the paper's sampled check (with a column counting the
+        escapes ``certify`` proves free) instead of the certified one, whose searches take
+        several times longer (``benchmarks/RESULTS.md``, *Certified search speed*).
       n_restarts: seeds of the case-1 study (default 500, or 100 when quick).
       suite: scenario names for the suite study (default: every shipped scenario).
       suite_restarts: seeds per suite scenario (default 200, or 50 when quick).
@@ -99,22 +102,20 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
                   else (100 if quick else 500))
     suite_restarts = (positive_int("suite_restarts", suite_restarts) if suite_restarts is not None
                    else (50 if quick else 200))
-    suite = _suite_problems(list(scenario_files.available()) if suite is None else suite)
+    beyond = "sampled" if quick else "certified"  # the check of the sections beyond the paper
+    suite = _suite_problems(list(scenario_files.available()) if suite is None else suite, beyond)
     degrees = [positive_int("degrees", d, minimum=6) for d in degrees]
     workers = _section_workers(workers)
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     report = _Report(out)
     chunk = _shared_chunk(n_restarts, suite_restarts)
-    # The paper's tables use the paper's check: collision-free at the 101 samples of r; the
-    # sections beyond the paper search under the certified check.
-    case1, case2, case3, death_trap = (
-        scenario_files.load_scenario(name, collision="sampled")
-        for name in ("paper-case-1", "paper-case-2", "paper-case-3", "death-trap"))
-    # The rules section and the certified counts run case 1 and death-trap at the suite's
-    # capacities (the same obstacles), so that they run the suite's compiled programs.
-    shared_case1, shared_death_trap = share_capacities(
-        [certified(case1), certified(death_trap), *suite])[:2]
+    # The paper's tables use the paper's check: collision-free at the 101 samples of r.
+    case1, case2, case3 = (scenario_files.load_scenario(name, collision="sampled")
+                           for name in ("paper-case-1", "paper-case-2", "paper-case-3"))
+    # The rules section runs case 1 and death-trap as the suite runs its scenes.
+    rules_problems = _suite_problems(["paper-case-1", "death-trap"], beyond,
+                                     share_with=suite)
     report.add(
         "# jaxarm: reproduction of Machmudah & Parman (2013)", "",
         f"Generated {datetime.datetime.now():%Y-%m-%d %H:%M} by `jaxarm reproduce-paper"
@@ -122,9 +123,14 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         f"{platform.processor() or platform.machine()}). Swarm: 20 particles, 100 iterations, "
         "as in the paper. Collision check: the paper's tables use the paper's, sampled at 101 "
         "points of r, and their *certified* columns say whether a path is also proved "
-        "collision-free for every r by `jaxarm.certify`; the sections beyond the paper (degree, "
-        "constraint rules, the suite) search under that certified check, jaxarm's default, so "
-        "every escape they count is a path proved collision-free.", "",
+        "collision-free for every r by `jaxarm.certify`. " + (
+            "This quick report runs the sections beyond the paper (degree, constraint rules, "
+            "the suite) under the sampled check too, with the same *certified* columns; "
+            "without --quick they search under the certified check, jaxarm's default."
+            if quick else
+            "The sections beyond the paper (degree, constraint rules, the suite) search under "
+            "that certified check, jaxarm's default, so every escape they count is a path "
+            "proved collision-free."), "",
         "**Scenarios are reconstructed.** The paper's figures of case 1's postures and of every "
         "obstacle did not survive; the shipped scenarios are fitted to its published numbers "
         "(see *How the scenarios were reconstructed* below). Fitness values of published "
@@ -141,7 +147,7 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         (out / "case1_study.csv").write_text(case1_study.to_csv())
         _table_2(part, case1_study)
         _reconstruction_section(part, case1, case2, case1_study)
-        _escape_section(part, case1, case1_study, shared_case1)
+        _escape_section(part, case1, case1_study, rules_problems[0])
 
     def tables_3_to_6(part: _Report) -> None:
         _table_3(part, case2, case3)
@@ -149,7 +155,7 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         _table_6(part, case2)
 
     def rules_and_case_2(part: _Report) -> None:
-        _rules_section(part, [shared_case1, shared_death_trap], n_restarts, chunk, progress)
+        _rules_section(part, rules_problems, n_restarts, chunk, progress)
         _feasible_set_section(part, case2)
         _trajectory_section(part, case2)
 
@@ -158,8 +164,8 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         _Section("cases II and III (Table 3), Tables 4-6", tables_3_to_6),
         _Section(f"beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine",
                  lambda part: part.add(*beyond_paper_section(
-                     [certified(p) for p in (case1, case2, case3)], 20 if quick else 100,
-                     degrees)), long=True),
+                     [p.replace(collision=beyond) for p in (case1, case2, case3)],
+                     20 if quick else 100, degrees)), long=True),
         _Section(f"constraint rules compared on case 1 and death-trap, {n_restarts} seeds each",
                  rules_and_case_2),
         _Section(f"shipped suite: {len(suite)} scenarios x {suite_restarts} seeds x 2 methods",
@@ -384,7 +390,8 @@ def _orientation(joints) -> float:
     return float(np.angle(np.exp(1j * np.sum(joints))))
 
 
-def _escape_section(report: _Report, case1, case1_study, shared_case1) -> None:
+def _escape_section(report: _Report, case1, case1_study, proved_on) -> None:
+    """``proved_on``: case 1 as the rules section runs it (its certify programs are shared)."""
     n = case1_study.methods[0].n_restarts
     report.add(
         f"## Escape probability on case 1 over {n} seeds, with 95 % Wilson intervals", "",
@@ -397,7 +404,7 @@ def _escape_section(report: _Report, case1, case1_study, shared_case1) -> None:
         "restarts that escaped, those whose best path `jaxarm.certify` proves free for every r: "
         + ", ".join(f"{method.variant.label} {proved}/{escaped}" for method, (proved, escaped)
                     in zip(case1_study.methods, _certified_escapes(
-                        shared_case1, [m.outcome for m in case1_study.methods]))) + ".", "",
+                        proved_on, [m.outcome for m in case1_study.methods]))) + ".", "",
     )
     report.figure(plot.plot_escape_rates(case1_study), "case1_escape_rates.png",
                   "Escape rates on case 1")
@@ -412,7 +419,7 @@ def _escape_section(report: _Report, case1, case1_study, shared_case1) -> None:
                   "case1_convergence.png", "Escape and evolution, preset A")
     rules = case1_study.method("A:feasibility").outcome
     x = rules.best_x[rules.best_restart()]
-    proof = certify(shared_case1, x)
+    proof = certify(proved_on, x)
     depth = -float(proof.clearance)
     between = ("certified free for every r" if bool(proof.free) else
                f"it enters an obstacle between two samples ({depth:.2g} cm deep)"
@@ -490,18 +497,18 @@ def _table_6(report: _Report, case2) -> None:
     report.add("")
 
 
-def certified(problem):
-    """The problem under the certified check."""
-    return problem.replace(collision="certified")
-
-
-def _suite_problems(names) -> list:
-    """The suite's scenarios under the certified check, loaded before any study so that a bad
-    name or file fails first."""
+def _suite_problems(names, collision: str, share_with=()) -> list:
+    """Scenarios under the ``collision`` check, loaded before any study so that a bad name or
+    file fails first. Under the sampled check every scene of an arm gets the arm's largest
+    capacities (with ``share_with``'s too), so that they share compiled programs; under the
+    certified check each keeps its own, since that check computes every padded slot and ran
+    several times slower at the suite's shared capacities than the compiling it saves."""
     if isinstance(names, str) or not names:
         raise ValueError(f"suite must be a non-empty list of scenario names, got {names!r}")
-    return share_capacities(scenario_files.load_scenario(name, collision="certified")
-                            for name in names)
+    problems = [scenario_files.load_scenario(name, collision=collision) for name in names]
+    if collision == "certified":
+        return problems
+    return share_capacities(problems + list(share_with))[:len(problems)]
 
 
 def _shared_chunk(n_restarts: int, suite_restarts: int) -> int:
@@ -511,6 +518,15 @@ def _shared_chunk(n_restarts: int, suite_restarts: int) -> int:
     ``escape_study``'s default."""
     common = math.gcd(n_restarts, suite_restarts)
     return common if common >= 20 else 500
+
+
+def _check_sentence(sampled: bool) -> str:
+    """What an escape means in a section searched under the sampled or the certified check."""
+    if sampled:
+        return ("An escape is a path free at the 101 samples, which can still cross an obstacle "
+                "between them: *certified* counts the restarts whose best path `jaxarm.certify` "
+                "proves free for every r, out of those that escaped. ")
+    return "An escape is a path the certified check proves collision-free for every r. "
 
 
 def _certified_escapes(problem, outcomes) -> list[tuple[int, int]]:
@@ -528,36 +544,44 @@ def _certified_escapes(problem, outcomes) -> list[tuple[int, int]]:
 
 
 def _suite(report: _Report, problems: list, n_restarts: int, chunk: int, progress) -> None:
+    check = problems[0].collision
+    sampled = check == "sampled"
     report.add(
-        f"## The shipped suite: escape rates over {n_restarts} seeds (preset A, certified "
+        f"## The shipped suite: escape rates over {n_restarts} seeds (preset A, {check} "
         "check)", "",
-        "Every search runs under the certified check: an escape is a path proved "
-        "collision-free for every r. "
-        "*Free share*: the share of the init range whose paths are certified collision-free "
+        _check_sentence(sampled),
+        "*Free share*: the share of the init range whose paths are collision-free "
         "(`jaxarm.feasible_fraction`, 10,000 uniform draws); *start*: the probability that the "
         "initial swarm of 20 already holds a free path, predicted from it (1 - (1 - p)^20) and "
         "measured (seeds escaped at iteration 0, death penalty). Scenes of the same arm run at "
         "that arm's largest obstacle capacities (`jaxarm.share_capacities`), so that they share "
         "compiled programs; a run at a scene's own capacities can differ in the last bits.", "",
         "| scenario | links | free share [95 % CI] | start: predicted / measured | "
-        "death penalty [95 % CI] | feasibility rules [95 % CI] | best fitness |",
-        "|---|---|---|---|---|---|---|",
+        "death penalty [95 % CI] | feasibility rules [95 % CI] | best fitness |"
+        + (" certified (feasibility rules' best paths) |" if sampled else ""),
+        "|---|---|---|---|---|---|---|" + ("---|" if sampled else ""),
     )
     rates = []
     for problem in problems:
         result = study.escape_study(problem, ["A", "A:feasibility"], n_restarts=n_restarts,
                                     chunk_size=chunk, progress=progress)
         cells = []
-        for method in result.methods:
+        proved = (_certified_escapes(problem, [method.outcome for method in result.methods])
+                  if sampled else [None] * len(result.methods))
+        for method, counts in zip(result.methods, proved):
             low, high = method.escape_interval()
             cells.append(f"{method.escape_rate():.0%} [{low:.0%}, {high:.0%}]")
         best = max(float(m.outcome.best_fitness.max()) for m in result.methods)
+        proved = ""
+        if sampled:
+            [(n_proved, n_escaped)] = _certified_escapes(problem, [result.methods[1].outcome])
+            proved = f" {n_proved}/{n_escaped} |"
         share = feasible_fraction(problem)
         predicted, _ = share.start_escape(20)
         report.add(f"| {problem.name} | {problem.n_joints} | {share.fraction:.2%} "
                    f"[{share.interval[0]:.2%}, {share.interval[1]:.2%}] | {predicted:.0%} / "
                    f"{result.methods[0].start_escape_rate():.0%} | {cells[0]} | {cells[1]} | "
-                   f"{best:.4f} |")
+                   f"{best:.4f} |{proved}")
         rates.append((problem.name, result))
     report.add("")
     figure = Figure(figsize=(8.0, 3.8), layout="constrained")
@@ -593,11 +617,14 @@ def rule_methods() -> tuple[list, str]:
 
 def _rules_section(report: _Report, problems: list, n_restarts: int, chunk: int,
                    progress) -> None:
+    check = problems[0].collision
+    sampled = check == "sampled"
     methods, evosax_note = rule_methods()
+    curves = []
     report.add(
         "## Constraint rules compared (preset A, and evosax strategies)", "",
-        f"{n_restarts} seeds per row, each search under the certified check (an escape is a "
-        "path proved collision-free for every r). Rules (`jaxarm.optim.constraints`): the "
+        f"{n_restarts} seeds per row, the {check} check. {_check_sentence(sampled)}"
+        "Rules (`jaxarm.optim.constraints`): the "
         "paper's death penalty, feasibility rules, the epsilon-constrained comparison and an "
         "adaptive penalty; *ring* rows use the lbest ring topology instead of the global best, "
         "*global-ring* the global best for the first 5 % of the iterations and the ring after; "
@@ -606,12 +633,15 @@ def _rules_section(report: _Report, problems: list, n_restarts: int, chunk: int,
         "end feasible. The last column compares each row's escape rate with the death "
         f"penalty's (difference, 95 % Newcombe interval, Fisher exact p). {evosax_note}", "",
         "| scenario | rule | escape rate [95 % CI] | median escape iter | median / best fitness "
-        "| vs death penalty |", "|---|---|---|---|---|---|",
+        "| vs death penalty |" + (" certified |" if sampled else ""),
+        "|---|---|---|---|---|---|" + ("---|" if sampled else ""),
     )
     for problem in problems:
         result = study.escape_study(problem, methods, n_restarts=n_restarts, chunk_size=chunk,
                                     progress=progress)
-        for method in result.methods:
+        proved = (_certified_escapes(problem, [method.outcome for method in result.methods])
+                  if sampled else [None] * len(result.methods))
+        for method, counts in zip(result.methods, proved):
             s = method.summary()
             versus = "–"
             if method.variant.label != "A":
@@ -623,10 +653,13 @@ def _rules_section(report: _Report, problems: list, n_restarts: int, chunk: int,
                          else f"{s['escape_iter_median']:.0f}")
             report.add(f"| {problem.name} | {method.variant.label} | {s['escape_rate']:.1%} "
                        f"[{s['ci95_low']:.1%}, {s['ci95_high']:.1%}] | {iteration} | "
-                       f"{median} / {best} | {versus} |")
-        report.figure(plot.plot_escape_curves(result), f"{problem.name}_rule_curves.png",
-                      f"{problem.name}: fraction escaped by iteration, each rule")
+                       f"{median} / {best} | {versus} |"
+                       + (f" {counts[0]}/{counts[1]} |" if sampled else ""))
+        curves.append((problem.name, plot.plot_escape_curves(result)))
     report.add("")
+    for name, figure in curves:  # after the table: a figure inside it would end it
+        report.figure(figure, f"{name}_rule_curves.png",
+                      f"{name}: fraction escaped by iteration, each rule")
 
 
 def _feasible_set_section(report: _Report, case2) -> None:
@@ -751,9 +784,8 @@ def beyond_paper_section(problems, n_restarts: int, degrees=(6, 7, 8)) -> list[s
         f"## Beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine "
         f"({n_restarts} restarts, preset A)",
         "",
-        "Searches under the problems' check (the report runs them under the certified "
-        "check). Escape rates under both rules; fitness over the feasibility-rule restarts "
-        "that ended "
+        f"Searches under the {problems[0].collision} check. Escape rates under both rules; "
+        "fitness over the feasibility-rule restarts that ended "
         "feasible, before and after `jaxarm.refine` (optax Adam on distance plus a clearance "
         "barrier, steps accepted only when collision-free and no less fit). Times include "
         "compilation. The cases run at shared obstacle capacities "
