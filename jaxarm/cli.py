@@ -19,7 +19,7 @@ from jaxarm.choices import (
     COLLISION_MODES,
     CONSTRAINTS,
     DEFAULT_CONSTRAINT,
-    DEFAULT_METHOD,
+    DEFAULT_METHODS,
     DEFAULT_RESTARTS,
     LIMIT_UNITS,
     PSO_METHODS,
@@ -139,12 +139,12 @@ def build_parser() -> argparse.ArgumentParser:
                             f"{', '.join(PSO_METHODS)}, optionally with PSOConfig fields "
                             f"changed in brackets, such as 'A-ring[inertia_end=0.4]', and a "
                             f"constraint rule after a colon ('A:feasibility'); or "
-                            f"evosax:<Strategy>. Default: {DEFAULT_RESTARTS} restarts of "
-                            f"{DEFAULT_METHOD} with {DEFAULT_CONSTRAINT} rules, the search "
-                            f"meant to find a collision-free path; 'A' is the paper's preset "
-                            f"with its death penalty")
+                            f"evosax:<Strategy>. Default: {DEFAULT_RESTARTS} restarts each of "
+                            f"{' and '.join(DEFAULT_METHODS)} with {DEFAULT_CONSTRAINT} rules, "
+                            f"the search meant to find a collision-free path; 'A' is the "
+                            f"paper's preset with its death penalty, one swarm")
     solve.add_argument("--restarts", type=_positive,
-                       help=f"independent swarms ({DEFAULT_RESTARTS} with the default method, "
+                       help=f"independent swarms ({DEFAULT_RESTARTS} per default method, "
                             f"1 with a named one)")
     solve.add_argument("--refine", choices=("best", "all"),
                        help="polish with gradient steps after PSO: the best restart, or every "
@@ -366,10 +366,8 @@ def _solve(args) -> None:
     print(f"{problem.name}: {result.n_restarts} restart(s) x {args.particles} particles x "
           f"{args.iters} iterations")
     print(result.summary())
-    if args.json:  # what ran, spelt out: solve(problem, method, **settings) repeats it
-        settings.update(n_restarts=result.n_restarts, constraint=result.constraint)
-        method = DEFAULT_METHOD if args.method is None else args.method
-        args.json.write_text(json.dumps(run_record(problem, method, settings, result),
+    if args.json:  # solve(problem, method, **settings) repeats it (method null: the default)
+        args.json.write_text(json.dumps(run_record(problem, args.method, settings, result),
                                         indent=2, allow_nan=False))
         print(f"wrote {args.json}")
     if args.plot:

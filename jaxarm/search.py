@@ -11,7 +11,7 @@ import numpy as np
 
 from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import certify
-from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHOD, DEFAULT_RESTARTS
+from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS
 from jaxarm.model.problem import Problem
 from jaxarm.optim import evosax_adapter, pso
 from jaxarm.optim.methods import search_variant
@@ -47,8 +47,9 @@ class Result(NamedTuple):
     best_restart: int  # index of the best restart (``RestartOutcome.best_restart``)
     certified: bool  # best_x proved free for every r by ``jaxarm.certify``
     pso_best_fitness: float  # best_fitness before refinement (equal when refine=False)
-    method: str  # the method's name without its rule ("A", "A-ring", "evosax:CMA_ES"), or "custom"
-    config: pso.PSOConfig | evosax_adapter.StrategyConfig
+    method: str  # the method's name without its rule ("A", "A-ring", "evosax:CMA_ES"), or "custom";
+    #   the default search's "A-ring[inertia_end=0.4] x 8 + A x 8"
+    config: pso.PSOConfig | evosax_adapter.StrategyConfig  # the best restart's method's
     constraint: str
     collision: str  # the collision mode the search used
     degree: int  # the path degree searched (the problem's)
@@ -177,11 +178,12 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
           refine: bool | str = False) -> Result:
     """Search the problem's free coefficients with PSO, ``n_restarts`` independent swarms at once.
 
-    With no method, ``DEFAULT_RESTARTS`` (8) swarms of ``DEFAULT_METHOD`` (preset A with the
-    ring topology, inertia falling to 0.4) under ``DEFAULT_CONSTRAINT`` (feasibility rules),
-    and the best of them: the search meant to find a collision-free path. Naming a method runs
-    that method, and by default one swarm, as the paper did: ``solve(problem, "A")`` is the
-    paper's preset A with its death penalty.
+    With no method, ``DEFAULT_RESTARTS`` (8) swarms of each of ``DEFAULT_METHODS`` (preset A
+    with the ring topology and inertia falling to 0.4, then preset A) under
+    ``DEFAULT_CONSTRAINT`` (feasibility rules), and the best of them: the search meant to find
+    a collision-free path (``jaxarm.choices`` says why these). Naming a method runs that
+    method, and by default one swarm, as the paper did: ``solve(problem, "A")`` is the paper's
+    preset A with its death penalty.
 
     Restart i is seeded by ``fold_in(key(seed), i)``; its result does not depend on
     ``n_restarts`` (see ``jaxarm.optim.restarts``).
@@ -194,8 +196,9 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
         ":<constraint>" ("A:feasibility"); or a ``PSOConfig``; None: the default above.
       n_particles: swarm size (paper: 20).
       n_iters: PSO updates (paper: 100); iteration 0 is the initial swarm.
-      n_restarts: independent swarms (default: 8 with the default method, 1 with a named
-        one).
+      n_restarts: independent swarms (default: 8 per default method, 1 with a named one).
+        Restarts are numbered across the default's methods: the first method's are 0 ..
+        n - 1, the next's n .. 2n - 1.
       seed: integer seed in [0, 2**31).
       constraint: "death" (paper eq. 17), "feasibility" (feasibility rules), "epsilon" or
         "penalty" (``jaxarm.optim.constraints``); default: the rule ``method`` names, else
@@ -217,23 +220,27 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
     """
     began = time.perf_counter()
     if method is None:
-        method = DEFAULT_METHOD
         constraint = DEFAULT_CONSTRAINT if constraint is None else constraint
+        variants = [search_variant(name, constraint) for name in DEFAULT_METHODS]
         n_restarts = DEFAULT_RESTARTS if n_restarts is None else n_restarts
-    n_restarts = 1 if n_restarts is None else n_restarts
-    variant = search_variant(method, constraint)
-    config, constraint = variant.config, variant.constraint
-    if isinstance(config, evosax_adapter.StrategyConfig) and init_particles is not None:
-        raise ValueError(f"init_particles: {variant.name} starts from its own "
+    else:
+        variants = [search_variant(method, constraint)]
+        n_restarts = 1 if n_restarts is None else n_restarts
+    constraint = variants[0].constraint
+    if (isinstance(variants[0].config, evosax_adapter.StrategyConfig)
+            and init_particles is not None):
+        raise ValueError(f"init_particles: {variants[0].name} starts from its own "
                          "population; give init_particles to a PSO method")
     check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint)
     n_restarts = positive_int("n_restarts", n_restarts)
     if refine not in (False, True, "all"):
         raise ValueError(f"refine must be False, True or 'all', got {refine!r}")
     given = _check_init_particles(problem, init_particles, n_particles)
-    outcome = run_restarts(problem, config, constraint, n_particles=n_particles, n_iters=n_iters,
-                           seed=seed, first_restart=0, n_restarts=n_restarts,
-                           init_particles=given)
+    outcomes = [run_restarts(problem, variant.config, constraint, n_particles=n_particles,
+                             n_iters=n_iters, seed=seed, first_restart=i * n_restarts,
+                             n_restarts=n_restarts, init_particles=given)
+                for i, variant in enumerate(variants)]
+    outcome = outcomes[0].concatenate(*outcomes[1:]) if len(outcomes) > 1 else outcomes[0]
     pso_best = float(outcome.best_fitness[outcome.best_restart()])
     if refine:
         outcome = _refined(problem, outcome, every=refine == "all")
@@ -241,8 +248,11 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
     feasible = bool(outcome.feasible[best])
     certified = feasible and (problem.collision == "certified"
                               or bool(certify(problem, outcome.best_x[best]).free))
+    method_name = (variants[0].name if len(variants) == 1 else
+                   " + ".join(f"{variant.name} x {n_restarts}" for variant in variants))
     return Result(restarts=outcome, best_restart=best, certified=certified,
-                  pso_best_fitness=pso_best, method=variant.name, config=config,
+                  pso_best_fitness=pso_best, method=method_name,
+                  config=variants[best // n_restarts].config,
                   constraint=constraint, collision=problem.collision, degree=problem.degree,
                   seed=int(seed),
                   seconds=time.perf_counter() - began)

@@ -8,7 +8,7 @@ import tomli_w
 
 import jaxarm
 from jaxarm import choices, cli
-from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHOD, DEFAULT_RESTARTS
+from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS
 
 # The search sizes of every solve and study test here: with them (and restart counts in one
 # padded block) they run one compiled search program.
@@ -45,11 +45,18 @@ def test_cli_solve_writes_json_and_plot(capsys, tmp_path):
     assert (tmp_path / "r.png").stat().st_size > 5000
 
 
-def test_cli_solve_without_a_method_runs_the_default_search_and_says_so(capsys):
-    code, out, _ = run_cli(capsys, "solve", "paper-case-2", *SEARCH_SIZES)
+def test_cli_solve_without_a_method_runs_the_default_search_and_says_so(capsys, tmp_path):
+    code, out, _ = run_cli(capsys, "solve", "paper-case-2", *SEARCH_SIZES, "--json",
+                           str(tmp_path / "r.json"))
     assert code == 0
-    assert f"{DEFAULT_RESTARTS} restart(s) x 6 particles" in out
-    assert f"method {DEFAULT_METHOD} (inertia), constraint {DEFAULT_CONSTRAINT}" in out
+    assert f"{2 * DEFAULT_RESTARTS} restart(s) x 6 particles" in out
+    ring, preset = DEFAULT_METHODS
+    assert (f"method {ring} x {DEFAULT_RESTARTS} + {preset} x {DEFAULT_RESTARTS} (inertia), "
+            f"constraint {DEFAULT_CONSTRAINT}") in out
+    saved = jaxarm.load_run(tmp_path / "r.json")  # the record repeats the default search
+    assert saved.method is None
+    again = jaxarm.solve(saved.problem, saved.method, **saved.settings)
+    np.testing.assert_array_equal(again.restarts.best_x, saved.result.restarts.best_x)
     code, out, _ = run_cli(capsys, "solve", "paper-case-2", *SEARCH_SIZES, "--method", "A")
     assert code == 0 and "1 restart(s) x 6 particles" in out and "constraint death" in out
 

@@ -8,8 +8,9 @@ import pytest
 from sizes import SMALL
 
 import jaxarm
-from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHOD, DEFAULT_RESTARTS
+from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS
 from jaxarm.optim import pso
+from jaxarm.optim.methods import parse_method
 from jaxarm.paper import published
 from jaxarm.study import wilson_interval
 from jaxarm.testing import oracle_separation
@@ -51,18 +52,24 @@ def test_result_fields_are_consistent(case2):
 
 def test_the_default_search_is_the_documented_portfolio_and_says_so(case2):
     result = jaxarm.solve(case2, **SMALL)
+    ring, preset = DEFAULT_METHODS
+    n = DEFAULT_RESTARTS
     assert (result.method, result.constraint, result.n_restarts, result.degree) == (
-        DEFAULT_METHOD, DEFAULT_CONSTRAINT, DEFAULT_RESTARTS, case2.degree)
-    assert f"{DEFAULT_RESTARTS} restart(s), degree 6" in result.summary()
-    spelt_out = jaxarm.solve(case2, DEFAULT_METHOD, n_restarts=DEFAULT_RESTARTS,
-                             constraint=DEFAULT_CONSTRAINT, **SMALL)
-    np.testing.assert_array_equal(result.restarts.best_x, spelt_out.restarts.best_x)
+        f"{ring} x {n} + {preset} x {n}", DEFAULT_CONSTRAINT, 2 * n, case2.degree)
+    assert f"{2 * n} restart(s), degree 6" in result.summary()
+    # restarts 0 .. n - 1 are the first method's, n .. 2n - 1 the second's
+    first = jaxarm.solve(case2, ring, n_restarts=n, constraint=DEFAULT_CONSTRAINT, **SMALL)
+    np.testing.assert_array_equal(result.restarts.best_x[:n], first.restarts.best_x)
+    both = jaxarm.solve(case2, preset, n_restarts=2 * n, constraint=DEFAULT_CONSTRAINT, **SMALL)
+    np.testing.assert_array_equal(result.restarts.best_x[n:], both.restarts.best_x[n:])
+    assert result.config == parse_method(DEFAULT_METHODS[result.best_restart // n]).config
     # a named method is that method, one swarm, its own rule: the paper's settings
     paper = jaxarm.solve(case2, "A", **SMALL)
     assert (paper.method, paper.constraint, paper.n_restarts) == ("A", "death", 1)
     # the default method under another rule, and with more restarts
     other = jaxarm.solve(case2, constraint="death", n_restarts=3, **SMALL)
-    assert (other.method, other.constraint, other.n_restarts) == (DEFAULT_METHOD, "death", 3)
+    assert (other.method, other.constraint, other.n_restarts) == (
+        f"{ring} x 3 + {preset} x 3", "death", 6)
     # a record written before the degree was kept still reads
     record = result.to_dict()
     del record["degree"]

@@ -20,13 +20,13 @@ class SavedRun(NamedTuple):
     **settings)`` repeats it, restart for restart."""
 
     problem: Problem
-    method: str
+    method: str | None  # None: solve's default search
     settings: dict  # solve's keyword arguments: n_particles, n_iters, n_restarts, seed, ...
     result: Result
     versions: dict  # {"jaxarm": ..., "jax": ...} that produced it
 
 
-def run_record(problem: Problem, method: str, settings: dict, result: Result) -> dict:
+def run_record(problem: Problem, method: str | None, settings: dict, result: Result) -> dict:
     """What ``solve --json`` writes: the problem as a scenario table, the method, ``solve``'s
     keyword arguments, the ``Result`` and the jaxarm and jax versions."""
     return {"jaxarm": __version__, "jax": jax.__version__, "scenario": problem.name,
