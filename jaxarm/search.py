@@ -47,8 +47,8 @@ class Result(NamedTuple):
     best_restart: int  # index of the best restart (``RestartOutcome.best_restart``)
     certified: bool  # best_x proved free for every r by ``jaxarm.certify``
     pso_best_fitness: float  # best_fitness before refinement (equal when refine=False)
-    method: str  # the method's name without its rule ("A", "A-ring", "evosax:CMA_ES"), or "custom";
-    #   the default search's "A-ring[inertia_end=0.4] x 8 + A x 8"
+    method: str  # the method's name without its rule ("A", "A-ring", "evosax:CMA_ES"),
+    #   "custom", or the default search's "A-ring[inertia_end=0.4] x 8 + A x 8"
     config: pso.PSOConfig | evosax_adapter.StrategyConfig  # the best restart's method's
     constraint: str
     collision: str  # the collision mode the search used
@@ -202,8 +202,9 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
       seed: integer seed in [0, 2**31).
       constraint: "death" (paper eq. 17), "feasibility" (feasibility rules), "epsilon" or
         "penalty" (``jaxarm.optim.constraints``); default: the rule ``method`` names, else
-        "death" (feasibility rules with the default method). ``solve(p, "A:feasibility")`` is ``solve(p, "A", constraint="feasibility")``;
-        a method that names another rule than ``constraint`` is a ValueError.
+        "death" (feasibility rules with the default method). ``solve(p, "A:feasibility")``
+        is ``solve(p, "A", constraint="feasibility")``; a method that names another rule
+        than ``constraint`` is a ValueError.
       init_particles: optional particles, shape (n_given, n_free), put at the start of every
         restart's initial swarm (paper Table 6).
       refine: polish with ``jaxarm.refine`` after PSO: False, True (the best restart) or
