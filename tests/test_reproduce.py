@@ -45,6 +45,26 @@ def test_cli_reproduce_paper_writes_a_report_with_every_table(capsys, tmp_path):
                   "case2_profiles.png"):
         assert f"]({image})" in report and (tmp_path / image).stat().st_size > 5000
     assert len((tmp_path / "case1_study.csv").read_text().splitlines()) == 1 + 6 * 8
+    assert_tables_render(report)
+
+
+def assert_tables_render(markdown: str) -> None:
+    """Every Markdown table has a header, a rule of as many cells, rows of as many cells, and
+    ends at a blank line (a figure or text inside a table would end it early)."""
+    lines = markdown.splitlines()
+    index = 0
+    while index < len(lines):
+        if not lines[index].startswith("|"):
+            index += 1
+            continue
+        cells = lines[index].count("|")
+        assert re.fullmatch(r"\|(---\|)+", lines[index + 1]), lines[index:index + 2]
+        assert lines[index + 1].count("|") == cells, lines[index:index + 2]
+        index += 2
+        while index < len(lines) and lines[index].startswith("|"):
+            assert lines[index].count("|") == cells, lines[index]
+            index += 1
+        assert index == len(lines) or lines[index] == "", lines[index]
 
 
 def test_stage_lines_are_numbered_and_timed():
