@@ -61,13 +61,11 @@ about 1e-5 cm on an arm of 80 cm).
 
 Violation (for constraint handling), zero exactly when the motion is certified free:
 - a witness at a sample: how far the nearest link is inside the margin at the deepest sample
-  (cm). On the refitted paper-case-1, with the rules comparing it alone, this escaped in 81 %
-  of 100 restarts under feasibility rules, against 52 % when that penetration was summed over
-  the samples (the sum rewards paths that swing fast through an obstacle). Summing the
-  positive window shortfalls did worse (28 %, by hand; their speed term favours slow paths,
-  which there run through the big circle). The rules compare it times the travelling
-  distance (``constraints.path_measures``): 99 % (``benchmarks/certified_bench.py`` measures
-  every scenario);
+  (cm). Not summed over the samples (the sum rewards paths that swing fast through an
+  obstacle), nor the positive window shortfalls summed (their speed term favours slow paths);
+  both escaped less often under feasibility rules (``benchmarks/RESULTS.md``, *The certified
+  check, now the default*). The rules compare it times the travelling distance
+  (``constraints.path_measures``);
 - otherwise: ``(shortfall + tol) * width`` summed over the pieces that end as witness or
   undecided (plus ``tol * h`` when the budget ran out). A path that grazes an obstacle between
   samples gets a small violation that shrinks as it moves clear, so feasibility rules lead the
@@ -200,8 +198,8 @@ def _nearest_fold(lengths, world, x) -> path.SampleFold:
 
     One value per sample and nothing else: the window pass's two values per sample share
     every link's distances, and XLA's CPU backend then materialises each link-obstacle
-    distance on its own (paper-case-1, 1e5 random paths: 234 ms against 49 ms for this fold,
-    measured by hand), so the window pass runs only on the paths this one finds no witness on.
+    distance on its own (several times slower: ``benchmarks/RESULTS.md``, *Fitness-kernel
+    throughput*), so the window pass runs only on the paths this one finds no witness on.
     """
     return path.SampleFold(
         init=jnp.full(x.shape[:-1], jnp.inf, x.dtype),

@@ -262,7 +262,6 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     return shortfalls
 
 
-_TINY = 1e-30  # keeps the projection finite for a segment of length 0
 _CORNER_PAIRS = tuple(itertools.combinations(range(4), 2))  # every hull edge is one of them
 
 
@@ -290,13 +289,8 @@ def hull_separation(world, corners: list):
     dtype = corners[0][0].dtype
     axes = []  # (nx, ny, the hull's lowest and highest projection on the axis)
     for i, j in _CORNER_PAIRS:
-        (ax, ay), (bx, by) = corners[i], corners[j]
-        dx, dy = bx - ax, by - ay
-        inverse_length = jax.lax.rsqrt(jnp.maximum(dx * dx + dy * dy, _TINY))
-        nx, ny = -dy * inverse_length, dx * inverse_length
-        along = [nx * cx + ny * cy for cx, cy in corners]
-        axes.append((nx, ny, functools.reduce(jnp.minimum, along),
-                     functools.reduce(jnp.maximum, along)))
+        nx, ny = world_lib.unit_normal(*corners[i], *corners[j])
+        axes.append((nx, ny, *_projection_range(nx, ny, corners)))
     nearest = jnp.full(corners[0][0].shape, jnp.inf, dtype)
     circles = jnp.asarray(world.circles, dtype)
     for i in range(circles.shape[0]):
@@ -314,11 +308,10 @@ def hull_separation(world, corners: list):
         valid = [slots(world.edge_valid[:, v]) for v in range(vertices.shape[1])]
         gap = jnp.full((vertices.shape[0],) + corners[0][0].shape, -jnp.inf, dtype)
         for v in range(vertices.shape[1]):  # the polygons' edge normals
-            along = [slots(normals[:, v, 0]) * cx + slots(normals[:, v, 1]) * cy
-                     for cx, cy in corners]
-            edge_gap = jnp.maximum(
-                functools.reduce(jnp.minimum, along) - slots(high_extent[:, v]),
-                slots(low_extent[:, v]) - functools.reduce(jnp.maximum, along))
+            low, high = _projection_range(slots(normals[:, v, 0]), slots(normals[:, v, 1]),
+                                          corners)
+            edge_gap = jnp.maximum(low - slots(high_extent[:, v]),
+                                   slots(low_extent[:, v]) - high)
             gap = jnp.maximum(gap, jnp.where(valid[v], edge_gap, -jnp.inf))
         for nx, ny, low, high in axes:  # the hull's
             along = [nx * slots(vertices[:, v, 0]) + ny * slots(vertices[:, v, 1])
@@ -331,3 +324,9 @@ def hull_separation(world, corners: list):
         nearest = jnp.minimum(nearest, jnp.where(slots(world.polygon_valid), gap,
                                                  jnp.inf).min(axis=0))
     return nearest
+
+
+def _projection_range(nx, ny, points: list) -> tuple:
+    """The lowest and highest projection of ``points`` ((x, y) pairs) on the axis (nx, ny)."""
+    along = [nx * x + ny * y for x, y in points]
+    return functools.reduce(jnp.minimum, along), functools.reduce(jnp.maximum, along)

@@ -283,9 +283,7 @@ def polygon_overlap_gap_xy(sx, sy, ex, ey, world: WorldArrays):
     # Written out per coordinate and per vertex slot (a static, small count): contractions and
     # reductions over axes of length 2 or 4 compile to slow loops on CPU, while this form
     # fuses into one vectorised elementwise loop.
-    dx, dy = ex - sx, ey - sy
-    inverse_length = jax.lax.rsqrt(jnp.maximum(dx * dx + dy * dy, _TINY))
-    mx, my = -dy * inverse_length, dx * inverse_length  # unit normal of the segment
+    mx, my = unit_normal(sx, sy, ex, ey)
     offset = mx * sx + my * sy
     normals = jnp.asarray(world.normals, dtype=dtype)
     vertices = jnp.asarray(world.vertices, dtype=dtype)
@@ -305,6 +303,14 @@ def polygon_overlap_gap_xy(sx, sy, ex, ey, world: WorldArrays):
         along_max = along if along_max is None else jnp.maximum(along_max, along)
     gap = jnp.maximum(gap, jnp.maximum(along_min - offset, offset - along_max))
     return jnp.where(leading_slots(world.polygon_valid, n), gap, jnp.inf)
+
+
+def unit_normal(sx, sy, ex, ey):
+    """The unit normal ``(-dy, dx) / length`` of segments (s, e), about 0 for a segment of
+    length 0; all arguments broadcast together."""
+    dx, dy = ex - sx, ey - sy
+    inverse_length = jax.lax.rsqrt(jnp.maximum(dx * dx + dy * dy, _TINY))
+    return -dy * inverse_length, dx * inverse_length
 
 
 def _edge_distance(sx, sy, ex, ey, vx, vy, wx, wy, valid):
