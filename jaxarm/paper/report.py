@@ -501,8 +501,8 @@ def _suite_problems(names, collision: str, share_with=()) -> list:
     """Scenarios under the ``collision`` check, loaded before any study so that a bad name or
     file fails first. Under the sampled check every scene of an arm gets the arm's largest
     capacities (with ``share_with``'s too), so that they share compiled programs; under the
-    certified check each keeps its own, since that check computes every padded slot and ran
-    several times slower at the suite's shared capacities than the compiling it saves."""
+    certified check each keeps its own, since that check computes every padded slot in its
+    costlier tests."""
     if isinstance(names, str) or not names:
         raise ValueError(f"suite must be a non-empty list of scenario names, got {names!r}")
     problems = [scenario_files.load_scenario(name, collision=collision) for name in names]
