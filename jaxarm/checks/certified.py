@@ -63,9 +63,9 @@ Violation (for constraint handling), zero exactly when the motion is certified f
 - a witness at a sample: how far the nearest link is inside the margin at the deepest sample
   (cm). Not summed over the samples (the sum rewards paths that swing fast through an
   obstacle), nor the positive window shortfalls summed (their speed term favours slow paths);
-  both escaped less often under feasibility rules (``benchmarks/RESULTS.md``, *The certified
-  check, now the default*). The rules compare it times the travelling distance
-  (``constraints.path_measures``);
+  both escaped less often under feasibility rules (``benchmarks/RESULTS.md``, *Decisions and
+  negative results*, "Constraint rules compare depth x distance"). The rules compare it times
+  the travelling distance (``constraints.path_measures``);
 - otherwise: ``(shortfall + tol) * width`` summed over the pieces that end as witness or
   undecided (plus ``tol * h`` when the budget ran out). A path that grazes an obstacle between
   samples gets a small violation that shrinks as it moves clear, so feasibility rules lead the
