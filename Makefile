@@ -1,25 +1,22 @@
-# `make demo` runs the main job, `make test` the test suite (everything not marked slow; what CI
-# runs), `make test-all` every test, `make docs` the API reference (docs/api/); each creates
-# .venv when missing (`make test-oldest`: the quick suite on the oldest dependencies, in its
-# own .venv-oldest). The tests run in two pytest-xdist workers: 4 min 37-44 s against 7 min
-# in one process on 2 cores when last compared; pytest 2 to 5 min since (by machine); they share
-# one scratch compilation cache (tests/conftest.py; benchmarks/RESULTS.md, "Test suite time").
-# Each test file runs in one worker (--dist loadfile), so its tests share compiled programs:
-# 4:00 against 4:21 spread test by test, and 4:33 against 4:44 with worksteal (one pair each).
+# `make demo` runs the main job, `make test` the test suite (everything not marked slow: what CI
+# runs) and a strict build of the user guide, `make test-all` every test, `make docs` the user
+# guide and API reference (mkdocs, into site/); each creates .venv when missing
+# (`make test-oldest`: the quick suite on the oldest dependencies, in its own .venv-oldest).
+# The tests run in two pytest-xdist workers, each test file in one worker (--dist loadfile) so
+# that its tests share compiled programs; they share one scratch compilation cache
+# (tests/conftest.py). Why these choices: benchmarks/RESULTS.md, "Decisions and negative results".
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 OLDEST := .venv-oldest
-# uv installs the dependencies (and pip, for the user), compiled to bytecode as pip does: 18-19 s
-# against pip's 41-44 s for the test install on 2 cores (benchmarks/RESULTS.md, "uv installs
-# the suite's dependencies"). pip installs them where uv cannot (no uv wheel for the platform,
-# or an index that only pip is configured to reach).
+# uv installs the dependencies (and pip, for the user), compiled to bytecode as pip does; pip
+# installs them where uv cannot (no uv wheel for the platform, or an index that only pip is
+# configured to reach).
 install = $(1)/bin/uv pip install --quiet --compile-bytecode --python $(1)/bin/python pip $(2) \
 	|| ($(call pip_into,$(1)) && $(1)/bin/python -m pip install --quiet $(2))
-# The venvs are made without pip (0.15 s against 5.2 s for `venv` installing its own) and the
-# interpreter's pip installs uv into them (pip >= 22.3: `--python`); the whole test install
-# took 13-17 s against 17-20 s (three pairs, benchmarks/RESULTS.md, "A venv without pip").
-# Where that fails, the venv gets its bundled pip (`ensurepip`), which installs uv, or all.
+# The venvs are made without pip (faster) and the interpreter's pip installs uv into them
+# (pip >= 22.3: `--python`). Where that fails, the venv gets its bundled pip (`ensurepip`),
+# which installs uv, or all.
 pip_into = $(1)/bin/python -m pip --version >/dev/null 2>&1 \
 	|| $(1)/bin/python -m ensurepip --default-pip >/dev/null
 uv_into = $(PYTHON) -m pip --python $(1)/bin/python install --quiet uv 2>/dev/null \
@@ -70,7 +67,8 @@ notebooks: $(VENV)/.installed-notebooks
 	$(BIN)/python notebooks/execute.py
 
 docs: $(VENV)/.installed-test
-	$(BIN)/python docs/build_api.py
+	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict
+	@echo "User guide: site/index.html"
 
 clean:
-	rm -rf $(VENV) $(OLDEST) results docs/api .pytest_cache .hypothesis
+	rm -rf $(VENV) $(OLDEST) results site .cache .pytest_cache .hypothesis

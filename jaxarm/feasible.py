@@ -48,7 +48,7 @@ def feasible_fraction(problem: Problem, n_paths: int = 10_000, seed: int = 0
     Returns:
       ``FeasibleFraction``.
 
-    Example:
+    Examples:
       >>> jaxarm.feasible_fraction(jaxarm.load_scenario("open-space"), 100).fraction
       1.0
     """

@@ -161,7 +161,7 @@ def plot_escape_rates(study, ax=None, title: str | None = None):
                        for r in dict.fromkeys(rules)], fontsize=8, loc="upper left",
               bbox_to_anchor=(1.0, 1.0))  # beside the axes: bars reach 1.0 on either side
     ax.set_title(title or f"{study.problem_name}: escape within {study.n_iters} iterations "
-                          f"({study.methods[0].n_restarts} seeds)")
+                          f"({study.methods[0].n_restarts} seeds, {study.collision} check)")
     return figure
 
 
@@ -184,7 +184,7 @@ def plot_escape_curves(study, ax=None, title: str | None = None):
     ax.set_ylabel("fraction escaped (95 % band)")
     ax.legend(fontsize=8)
     ax.set_title(title or f"{study.problem_name}: escape by iteration "
-                          f"({study.methods[0].n_restarts} seeds)")
+                          f"({study.methods[0].n_restarts} seeds, {study.collision} check)")
     return figure
 
 
@@ -242,8 +242,9 @@ def plot_profiles(trajectory, *, max_velocity=None, max_acceleration=None, max_t
 
     Args:
       trajectory: a ``jaxarm.Trajectory``.
-      max_velocity, max_acceleration, max_torque: a scalar or one value per joint, as for
-        ``jaxarm.min_duration``.
+      max_velocity: a scalar or one value per joint, as for ``jaxarm.min_duration``.
+      max_acceleration: the same way.
+      max_torque: the same way.
       n_points: times drawn.
 
     Returns:

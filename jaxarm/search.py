@@ -213,7 +213,7 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
     Returns:
       ``Result``.
 
-    Example:
+    Examples:
       >>> problem = jaxarm.load_scenario("paper-case-2")
       >>> result = jaxarm.solve(problem, "A:feasibility", n_particles=6, n_iters=5)
       >>> result.feasible, result.certified, result.best_x.shape

@@ -15,7 +15,7 @@ Z_95 = 1.959963984540054
 def wilson_interval(successes: int, trials: int, z: float = Z_95) -> tuple[float, float]:
     """Wilson score interval for a binomial proportion (95 % by default).
 
-    Example:
+    Examples:
       >>> [round(v, 4) for v in wilson_interval(3, 7)]
       [0.1582, 0.7495]
     """
@@ -49,7 +49,7 @@ def newcombe_interval(successes_a: int, trials_a: int, successes_b: int, trials_
                       z: float = Z_95) -> tuple[float, float]:
     """Interval for ``p_a - p_b`` from the two Wilson intervals (Newcombe 1998, method 10).
 
-    Example:
+    Examples:
       >>> [round(v, 4) for v in newcombe_interval(56, 70, 48, 80)]
       [0.0524, 0.3339]
     """

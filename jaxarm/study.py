@@ -153,11 +153,12 @@ class Study(NamedTuple):
         return [self.compare(b, a) for i, a in enumerate(labels) for b in labels[i + 1:]]
 
     def table(self, pairwise: bool = False) -> str:
-        """Markdown table: escape rate with 95 % CI, escape-iteration quartiles, fitness; with
-        ``pairwise``, a second table of every pair's difference in escape rate (``compare``)."""
+        """Markdown table: escape rate with 95 % CI (its header names the collision check),
+        escape-iteration quartiles, fitness; with ``pairwise``, a second table of every pair's
+        difference in escape rate (``compare``)."""
         lines = [
-            "| method | constraint | escaped | escape rate [95 % CI] | escape iter median [q1, q3]"
-            " | best fitness median / max | time (s) |",
+            f"| method | constraint | escaped | escape rate, {self.collision} check [95 % CI] "
+            "| escape iter median [q1, q3] | best fitness median / max | time (s) |",
             "|---|---|---|---|---|---|---|",
         ]
         fmt = lambda v, spec: "–" if v is None else format(v, spec)  # noqa: E731
@@ -232,7 +233,8 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
         "A-ring[inertia_end=0.4]:feasibility" (``pso.resolve``'s names), ``PSOConfig``s or
         ``Variant``s (see ``parse_variants``); labels must be unique.
       n_restarts: seeds (restarts) per method; the same restart indices for every method.
-      n_iters, n_particles: PSO sizes (paper: 100 and 20).
+      n_iters: PSO iterations (paper: 100).
+      n_particles: swarm size (paper: 20).
       constraint: the constraint rule for entries that do not name one.
       seed: base seed; seed i of the study is restart i of ``solve(problem, seed=seed)``.
       chunk_size: at most this many restarts per compiled call; the restarts are split into
@@ -244,7 +246,7 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
     Returns:
       ``Study``.
 
-    Example:
+    Examples:
       >>> study = jaxarm.escape_study(jaxarm.load_scenario("paper-case-2"), ["A", "B"],
       ...                             n_restarts=4, n_iters=5, n_particles=6)
       >>> [(m.variant.label, m.n_restarts) for m in study.methods]

@@ -58,7 +58,7 @@ class Trajectory:
       x: the path's free parameters, shape (n_free,).
       duration: the transfer time T (s), finite and > 0.
 
-    Example:
+    Examples:
       >>> problem = jaxarm.load_scenario("paper-case-2")
       >>> traj = jaxarm.Trajectory(problem, [66.7388, -28.1028, -9.8855], duration=2.0)
       >>> state = traj.at([0.0, 1.0, 2.0])
@@ -233,8 +233,9 @@ def min_duration(problem: Problem, x, *, max_velocity=None, max_acceleration=Non
     Args:
       problem: the problem (``max_torque`` needs its arm's masses).
       x: the path's free parameters, shape (n_free,).
-      max_velocity, max_acceleration, max_jerk: rad/s, rad/s^2, rad/s^3; a scalar for every
-        joint or one value per joint; each > 0.
+      max_velocity: rad/s, a scalar for every joint or one value per joint; each > 0.
+      max_acceleration: rad/s^2, the same way.
+      max_jerk: rad/s^3, the same way.
       max_torque: N m, the same way.
 
     Returns:
@@ -244,7 +245,7 @@ def min_duration(problem: Problem, x, *, max_velocity=None, max_acceleration=Non
       ValueError: when no limit is given, a limit is not a positive finite number (or has the
         wrong length), or a torque limit is at or below the static gravity load on the path.
 
-    Example:
+    Examples:
       >>> problem = jaxarm.load_scenario("paper-case-2")
       >>> x = [66.7388, -28.1028, -9.8855]
       >>> T = jaxarm.min_duration(problem, x, max_velocity=1.0)

@@ -158,7 +158,7 @@ def fitness(problem: Problem, x) -> jax.Array:
     Returns:
       Array of shape (...,).
 
-    Example:
+    Examples:
       >>> problem = jaxarm.load_scenario("paper-case-2")
       >>> float(jaxarm.fitness(problem, [66.7388, -28.1028, -9.8855]))  # doctest: +ELLIPSIS
       0.1946...
@@ -216,7 +216,7 @@ def certify(problem: Problem, x) -> Certificate:
     Returns:
       ``Certificate`` of arrays of shape (...,).
 
-    Example:
+    Examples:
       >>> problem = jaxarm.load_scenario("paper-case-2")
       >>> certificate = jaxarm.certify(problem, [66.7388, -28.1028, -9.8855])
       >>> bool(certificate.free), bool(certificate.colliding)

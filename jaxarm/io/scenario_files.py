@@ -95,7 +95,7 @@ def load_scenario(name_or_path: str | pathlib.Path, **overrides) -> Problem:
       ScenarioError: unknown name, unreadable file, malformed TOML (with line and column),
         a missing or unknown key, or invalid values (naming the key).
 
-    Example:
+    Examples:
       >>> problem = jaxarm.load_scenario("paper-case-2", collision="sampled")
       >>> problem.name, problem.n_free, problem.collision
       ('paper-case-2', 3, 'sampled')

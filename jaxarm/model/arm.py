@@ -27,7 +27,7 @@ class Arm:
       gravity: gravitational acceleration along -y (m/s^2), finite and >= 0; 0 for an arm
         moving in a horizontal plane.
 
-    Example:
+    Examples:
       >>> Arm(lengths=(30.0, 30.0, 20.0)).n_joints
       3
     """
@@ -151,7 +151,8 @@ def inverse_kinematics(arm: Arm, x: float, y: float, phi: float, elbow: int = 1)
 
     Args:
       arm: a 3-link arm.
-      x, y: end-effector position (cm).
+      x: end-effector position along x (cm).
+      y: end-effector position along y (cm).
       phi: end-effector orientation, the absolute angle of the last link (rad).
       elbow: +1 or -1, the sign of joint 2.
 

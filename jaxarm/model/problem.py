@@ -83,14 +83,18 @@ class Problem:
 
     Args:
       arm: the arm.
-      start, goal: joint angles (rad), shape (n_joints,).
+      start: joint angles (rad) at r = 0, shape (n_joints,).
+      goal: joint angles (rad) at r = 1, shape (n_joints,).
       world: the obstacles.
       degree: polynomial degree d >= 6 (d - 5 free coefficients per joint).
       n_samples: odd number of points of r in [0, 1] for Simpson's rule and the sampled check.
       collision: ``"certified"`` (default: every r in [0, 1] proved free, see
         ``jaxarm.checks.certified``) or ``"sampled"`` (the paper's check at the n samples only).
-      init_low, init_high: range the initial swarm is drawn from, a scalar or shape (n_free,).
-      name, description: labels for reports.
+      init_low: low end of the range the initial swarm is drawn from, a scalar or shape
+        (n_free,).
+      init_high: high end of that range, the same way.
+      name: the problem's name in reports.
+      description: one line for reports.
       capacities: obstacle slots (circles, polygons, vertices per polygon); default from world.
       margin: clearance (cm) every link must keep from every obstacle; 0 allows grazing.
       certify_tol: the certified check's tolerance (cm): every motion whose clearance exceeds
@@ -106,7 +110,7 @@ class Problem:
     Raises:
       ValueError: naming the field and value, including a start or goal posture that collides.
 
-    Example:
+    Examples:
       >>> arm = jaxarm.Arm((30.0, 30.0, 20.0))
       >>> problem = jaxarm.Problem(arm=arm, start=[0.0, 0.5, 0.5], goal=[1.0, 0.5, 0.5])
       >>> problem.n_free, problem.collision
@@ -296,7 +300,7 @@ def share_capacities(problems) -> list[Problem]:
     Returns:
       The problems, in order, each with its arm's shared ``capacities``.
 
-    Example:
+    Examples:
       >>> from jaxarm import load_scenario
       >>> [p.capacities for p in share_capacities(
       ...     [load_scenario("paper-case-1"), load_scenario("death-trap")])]

@@ -62,7 +62,7 @@ class World:
       boxes: ``((xmin, ymin), (xmax, ymax))`` pairs with min < max on both axes.
       polygons: convex polygons, each a list of >= 3 ``(x, y)`` vertices in either order.
 
-    Example:
+    Examples:
       >>> world = jaxarm.World(circles=[(40.0, 4.5, 6.7)], boxes=[((10.0, -5.0), (20.0, 5.0))])
       >>> world.n_obstacles
       2

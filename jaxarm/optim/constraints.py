@@ -80,7 +80,7 @@ def path_measures(fitness, violation, distance) -> Measured:
       ``Measured``: objective 1 / distance, the fitness, the violation times the distance, and
       the violation as given (reported).
 
-    Example:
+    Examples:
       >>> deep_and_short, deep_and_long = path_measures(
       ...     jnp.zeros(2), jnp.array([1.0, 1.0]), jnp.array([4.0, 20.0])).ranked_violation.tolist()
       >>> deep_and_short < deep_and_long
@@ -129,7 +129,7 @@ def epsilon_level(state: RuleState, iteration, n_iters: int) -> jax.Array:
 def score(constraint, state: RuleState, measured: Measured, iteration, n_iters: int):
     """The scores of ``measured`` (shape (n,)) under the rule at update ``iteration``.
 
-    Example:
+    Examples:
       >>> free_and_colliding = Measured(jnp.array([5.0, 8.0]), jnp.array([5.0, 0.0]),
       ...                               jnp.array([0.0, 3.0]), jnp.array([0.0, 3.0]))
       >>> state = initial_state(free_and_colliding)

@@ -47,7 +47,7 @@ def parse_method(method, constraint: str = "death", custom_label: str = "custom"
     Raises:
       ValueError: naming the method (unknown name, field or rule; a rule evosax lacks).
 
-    Example:
+    Examples:
       >>> parse_method("A-ring:feasibility").constraint
       'feasibility'
     """

@@ -84,7 +84,7 @@ class SwarmRules(NamedTuple):
 class PSOConfig(NamedTuple):
     """A PSO variant. Field names follow evosax (``cognitive_coeff`` is the paper's phi1 / c1).
 
-    Example:
+    Examples:
       >>> PSOConfig(velocity_rule="constriction", cognitive_coeff=3.0, social_coeff=2.0,
       ...           inertia_start=1.0, inertia_end=1.0).constriction  # doctest: +ELLIPSIS
       0.3819...
@@ -171,7 +171,7 @@ def resolve(method: str | PSOConfig) -> PSOConfig:
     either with fields changed in brackets ("A-ring[inertia_end=0.4]", any ``PSOConfig`` field,
     comma-separated; ``velocity_clamp=none`` for no clamp), or a ``PSOConfig``, validated.
 
-    Example:
+    Examples:
       >>> resolve("B-ring") == PRESETS["B"]._replace(topology="ring")
       True
       >>> resolve("A-ring[inertia_end=0.4]").inertia_end
@@ -286,9 +286,11 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
     """PSO over the box [low, high] as a ``Swarm`` (paper eqs. 13-16).
 
     Args:
-      params, rules: ``PSOConfig.params()`` (traced) and ``PSOConfig.rules()`` (static).
+      params: ``PSOConfig.params()`` (traced).
+      rules: ``PSOConfig.rules()`` (static).
       measure_fn: maps positions (n_particles, n_dims) to ``constraints.Measured``.
-      low, high: the initial range, shape (n_dims,).
+      low: the initial range's low end, shape (n_dims,).
+      high: its high end, shape (n_dims,).
       n_particles: swarm size (static).
       n_iters: total number of updates, for the inertia and epsilon schedules (static).
       init_particles: optional given particles, shape (k, n_dims), k <= n_particles; the first
@@ -300,7 +302,7 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
     Returns:
       ``Swarm``; ``start`` draws iteration 0, each ``ask`` one synchronous update.
 
-    Example:
+    Examples:
       >>> def sphere(x):
       ...     value = -(x ** 2).sum(-1)
       ...     violation = jnp.where(x[:, 0] > 0, 0.0, 1.0)

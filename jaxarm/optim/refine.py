@@ -174,14 +174,14 @@ def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weig
       optimizer: an optax ``GradientTransformation`` (default ``optax.adam(0.2)``); pass the
         same instance again to reuse the compiled program.
       barrier_weight: weight of the clearance barrier (per sample, in the distance's units).
-      margin, temperature: the barrier's clearance margin (cm, on top of ``problem.margin``)
-        and softness (cm).
+      margin: the barrier's clearance margin (cm, on top of ``problem.margin``).
+      temperature: the barrier's softness (cm).
 
     Returns:
       ``RefineResult`` whose fields have x's leading shape (...) (``x``: x's shape;
       ``history``: (..., n_steps + 1)).
 
-    Example:
+    Examples:
       >>> problem = jaxarm.load_scenario("paper-case-2")
       >>> polished = jaxarm.refine(problem, [113.0533, -42.3741, -10.0300])
       >>> bool(polished.fitness > 0.1476)
