@@ -189,7 +189,8 @@ def plot_escape_curves(study, ax=None, title: str | None = None):
 
 
 def plot_feasible_map(problem: Problem, x, dims=(0, 1), *, resolution: int = 121, bounds=None,
-                      best=None, ax=None, title: str | None = None):
+                      best=None, ax=None, title: str | None = None,
+                      point_label: str = "slice through this path"):
     """Fitness on the plane through ``x`` spanned by free coefficients ``dims``; paths that
     collide (fitness 0) in grey. Answers "what does the feasible set look like?" (paper 11.3).
 
@@ -199,6 +200,7 @@ def plot_feasible_map(problem: Problem, x, dims=(0, 1), *, resolution: int = 121
       resolution: grid points per axis (>= 2).
       bounds: ``((low_i, high_i), (low_j, high_j))``; default: the problem's init range.
       best: optional second point to mark (a swarm's best, say), shape (n_free,).
+      point_label: the legend's name for ``x``.
     """
     x = _one_path(problem, x).astype(np.float64)
     i, j = dims
@@ -222,7 +224,7 @@ def plot_feasible_map(problem: Problem, x, dims=(0, 1), *, resolution: int = 121
     image = ax.imshow(np.ma.masked_equal(values, 0.0), origin="lower", aspect="auto",
                       extent=(low_i, high_i, low_j, high_j), cmap="viridis")
     figure.colorbar(image, ax=ax, label="fitness (grey: collides)")
-    ax.plot(x[i], x[j], "x", color="#d62728", ms=9, mew=2, label="x")
+    ax.plot(x[i], x[j], "x", color="#d62728", ms=9, mew=2, label=point_label)
     if best is not None:
         best = _one_path(problem, best)
         ax.plot(best[i], best[j], "*", color="white", mec="black", ms=12, label="best")

@@ -42,12 +42,13 @@ def test_figures_explain_themselves(tmp_path, case2):
     ax = plot.plot_escape_rates(escape).axes[0]
     assert [t.get_text() for t in ax.get_legend().get_texts()] == [
         "death penalty", "feasibility rules", "epsilon-constrained", "adaptive penalty"]
-    assert "3 seeds" in ax.get_title()
+    assert "3 seeds" in ax.get_title() and f"{case2.collision} check" in ax.get_title()
     assert all(label.get_rotation() == 30 for label in ax.get_xticklabels())
     ax = plot.plot_escape_curves(escape).axes[0]
     assert len(ax.collections) == 6  # one 95 % band per method
     band = ax.collections[0].get_paths()[0].vertices[:, 1]
     assert band.min() >= 0 and band.max() <= 1 and "3 seeds" in ax.get_title()
+    assert f"{case2.collision} check" in ax.get_title()
 
 
 def test_the_drawn_arm_is_the_path_the_api_computes(case2):
@@ -93,7 +94,8 @@ def test_feasible_map_colours_free_paths_and_greys_colliding_ones(case2):
     expected = np.asarray(jaxarm.fitness(case2, grid))
     np.testing.assert_array_equal(image.mask, expected == 0)
     np.testing.assert_allclose(image.filled(0.0), expected)
-    assert {t.get_text() for t in ax.get_legend().get_texts()} == {"x", "best"}
+    assert {t.get_text() for t in ax.get_legend().get_texts()} == {"slice through this path",
+                                                               "best"}
     assert f"{np.mean(expected > 0):.1%} of it free" in ax.get_title()
     for kwargs, message in ((dict(dims=(1, 1)), "dims must be two different indices"),
                             (dict(dims=(0, 3)), "dims must be two different indices"),

@@ -95,6 +95,7 @@ def test_study_summaries_tables_and_records(case2):
     assert curve[-1] == pytest.approx(summary["escape_rate"])
     table = result.table()
     assert table.count("\n") == 3 and "A:feasibility" in table
+    assert f"escape rate, {result.collision} check" in table.splitlines()[0]
     assert json.loads(result.to_json())["methods"][1]["method"] == "C:feasibility"
     records = result.records()
     assert len(records) == 12 and records[0]["restart"] == 0

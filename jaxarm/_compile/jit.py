@@ -2,11 +2,11 @@
 
 A short run spends most of its time in XLA compiling the search, the certified check and
 refine. On CPU jaxarm compiles them with ``CPU_COMPILER_OPTIONS``: LLVM's optimisation level 1
-instead of XLA's default 2. Measured on this project's 2-core CPU machine
-(``benchmarks/RESULTS.md``, "One copy of the check per program, and LLVM optimisation level 1";
-the certified search on paper-case-1: 5.8 s -> 3.9 s, by hand), programs compile faster and
-run as fast, and PSO results are bit-identical; the evosax CMA-ES restarts differ in their last
-bits. Other backends keep XLA's defaults (untested there).
+instead of XLA's default 2: programs compile faster and run as fast, PSO results are
+bit-identical, and the evosax CMA-ES restarts differ in their last bits
+(``benchmarks/RESULTS.md``, *Decisions and negative results*, "One copy of the check per
+program, and LLVM optimisation level 1"). Other backends keep XLA's defaults (untested
+there).
 """
 
 from __future__ import annotations

@@ -394,9 +394,8 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
     n_samples = tables.shape[0]
     # With one polygon slot the minimum over the slots is no reduction at all, and XLA then
     # repeated a piece's geometry in each of the ~16 fusions that read its result. An empty
-    # second slot keeps it in one; with the branch below as well, death-trap's first certify
-    # (compiling) took 5.1 s against 8.3 s without it (benchmarks/RESULTS.md, "The certified
-    # bisection computes each piece once").
+    # second slot keeps it in one (benchmarks/RESULTS.md, Decisions and negative results, "The
+    # certified bisection computes each piece once").
     world = world_lib.pad_polygon_slots(world, 2) if world.vertices.shape[0] == 1 else world
 
     def refill(lanes: _Lanes, next_item):
@@ -490,9 +489,9 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
         windows = jnp.where(split[:, None], lanes.windows, remaining)
         # Finished paths' verdicts written and idle lanes refilled at every step. Doing it
         # only once an eighth of the lanes waited (a branch) compiled every lane array's
-        # kernels a second time, for about the same speed on CPU: `certify` as fast or slower,
-        # a 100-restart solve 1-3 % faster on paper-case-1, 6 % slower on death-trap
-        # (benchmarks/RESULTS.md, "The bisection loop writes each lane array once per step").
+        # kernels a second time, for about the same speed on CPU (benchmarks/RESULTS.md,
+        # Decisions and negative results, "The bisection loop writes each lane array once per
+        # step").
         target = jnp.where(path_done, lanes.row, n_rows)
         out = jax.tree.map(lambda o, v: o.at[target].set(v, mode="drop"), out, verdict)
         lanes = _Lanes(row=lanes.row, active=lanes.active & ~path_done, x=lanes.x,

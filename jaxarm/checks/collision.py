@@ -9,10 +9,9 @@ Violation (for constraint handling): ``max(m - separation, 0)`` summed over link
 obstacles at a sample, the largest such sum over the samples (cm: the deepest penetration
 found); zero exactly when no sample collides. The deepest penetration rather than its sum over
 the samples: the sum rewards paths that swing fast through an obstacle (fewer samples inside),
-and under feasibility rules it drew more swarms into such traps (paper-case-1, preset A, 500
-seeds of ``jaxarm reproduce-paper``, each compared alone: 79.6 % escape with the deepest
-penetration, 60.4 % with the sum; ``benchmarks/RESULTS.md``). The constraint rules compare it
-times the path's travelling distance (``constraints.path_measures``).
+and under feasibility rules it drew more swarms into such traps (``benchmarks/RESULTS.md``,
+*Decisions and negative results*, "Constraint rules compare depth x distance"). The constraint
+rules compare it times the path's travelling distance (``constraints.path_measures``).
 
 The certified continuous check lives in ``jaxarm.checks.certified``; its per-window test
 (``window_shortfall``, with ``reach_matrix``, ``tail_weights`` and ``speed_bound``) is here.
@@ -33,12 +32,10 @@ from jaxarm.model import path
 from jaxarm.model import world as world_lib
 from jaxarm.model.arm import link_endpoints, sincos
 
-# Written out, XLA fuses every link's exact polygon distances into one kernel. With 3 links it
-# ran about 10x slower than the links apart for 4 polygon slots of 6, 7 or 8 vertex slots and
-# for 8 of 4 (72-96 link-edge pairs), not for 4 of 5, 6 of 4 or 3 of 8 (60-72). One link at a
-# time (a scan) was slower on small worlds: 13-36 % in 100-restart searches on narrow-gap,
-# mixed-clutter and death-trap (benchmarks/RESULTS.md, "The sampled check with a margin on
-# polygon-field").
+# Written out, XLA fuses every link's exact polygon distances into one kernel, which runs far
+# slower past about this many link-edge pairs; one link at a time (a scan) is slower on small
+# worlds, so the scan starts above it (benchmarks/RESULTS.md, Decisions and negative results,
+# "The sampled check with a margin on polygon-field").
 UNROLLED_LINK_EDGES = 64
 
 

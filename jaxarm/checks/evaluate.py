@@ -128,8 +128,9 @@ def vmapped_evaluate(spec: ProblemSpec):
 def _evaluate_and_certify(spec: ProblemSpec, arrays: ProblemArrays, rows):
     """``evaluate`` of paths ``rows``, shape (B, n_free), and for a certified spec their
     ``Certificate`` from the same check (else None): one compiled program per spec and batch
-    size serves ``fitness``, ``violation``, ``collides`` and ``certify``. (Compiled apart, the
-    check was compiled twice: 5.1 + 5.5 s against 5.6 s for 256 thin-wall paths.)"""
+    size serves ``fitness``, ``violation``, ``collides`` and ``certify``: compiled apart, the
+    check was compiled twice (``benchmarks/RESULTS.md``, *Decisions and negative results*,
+    "One program for the checks")."""
     evaluation, check, limits = _check_rows(spec, arrays, rows)
     if check is None:
         return evaluation, None

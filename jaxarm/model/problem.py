@@ -289,9 +289,10 @@ def share_capacities(problems) -> list[Problem]:
 
     A search compiles once per capacities (with the arm, degree and check), and compiling is
     most of a short study's time. Padded slots are empty but still computed, so a small scene
-    runs slower than at its own capacities (death-trap, 1000 sampled restarts, by hand:
-    1.50 s at (0, 1, 4), 2.05 s at (4, 4, 4)); its results are as valid, though not always
-    bit for bit the same (another compiled program can round differently in the last bits).
+    runs slower than at its own capacities ("Shared capacities in the quick report" in
+    ``benchmarks/RESULTS.md``, *Decisions and negative results*); its results are as valid,
+    though not always bit for bit the same (another compiled program can round differently in
+    the last bits).
     The quick report uses it for its suite, its rules section and its degree comparison.
 
     Args:

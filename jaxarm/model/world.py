@@ -335,10 +335,9 @@ def polygon_separation_xy(sx, sy, ex, ey, world: WorldArrays, vertex_axis: bool 
     rather than written out per vertex: the same values up to how XLA rounds an edge's
     distance in each program (a minimum is exact). The same bits on jax 0.10.2; up to 2 float32
     ulps apart in 255 of 34,080 distances on jax 0.8.0 (tests/test_world.py's random worlds).
-    It compiles to fewer kernels: the certified check's program for polygon-field (4 slots of
-    8 vertices, 64 paths) compiled in 3.1-3.2 s instead of 4.1-4.2 s on one core and ran 3-6 %
-    faster (benchmarks/RESULTS.md, "Fewer kernels in the certified check"). The sampled check
-    with a margin keeps the written-out form: with the axis it ran 3x slower on two scenes."""
+    It compiles to fewer kernels, so the certified check compiles faster ("Fewer kernels in the
+    certified check" in ``benchmarks/RESULTS.md``, *Decisions and negative results*); the
+    sampled check with a margin keeps the written-out form, which runs faster there."""
     n = sx.ndim
     gap = polygon_overlap_gap_xy(sx, sy, ex, ey, world)
     vertices = jnp.asarray(world.vertices, dtype=sx.dtype)
@@ -403,11 +402,10 @@ def polygon_slots(sx, sy, ex, ey, world: WorldArrays, exact: bool = True) -> lis
 
     Like ``separation_parts(...).polygons`` unstacked, but each slot is computed alone (as a
     world of one polygon). The sampled check uses it: with the polygon slots as an array axis,
-    XLA compiled the search's check into slow loops whenever there were 2 or more slots
-    (measured by hand, 1000 sampled restarts of preset A: death-trap padded from 1 to 2
-    polygon slots 1.59 -> 7.04 s; slot by slot, polygon-field 13.7 -> 3.3 s, mixed-clutter
-    14.7 -> 3.4 s). The certified check keeps the array form: written out slot by slot, its
-    program for 4 polygon slots of 8 vertices took about 40 s to compile instead of 4-6 s.
+    XLA compiled the search's check into slow loops whenever there were 2 or more slots. The
+    certified check keeps the array form: written out slot by slot, its program took far
+    longer to compile ("Polygons slot by slot in the sampled check" in
+    ``benchmarks/RESULTS.md``, *Decisions and negative results*).
     """
     polygon = polygon_separation_xy if exact else polygon_overlap_gap_xy
     return [polygon(sx, sy, ex, ey, one_polygon(world, k))[0]

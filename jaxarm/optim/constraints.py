@@ -23,9 +23,7 @@ one compiled program serves every rule.
   lambda * violation``. lambda(0) = mean objective / mean violation of the initial swarm (the
   two terms start balanced; 1 when no particle collides); after every update lambda doubles
   while the global best collides (up to 1e6 lambda(0)) and stays while it is free. (Halving it
-  while free, as Hadj-Alouane and Bean do, let colliding paths win back the global best: on
-  death-trap, its block then at x = 30, half the restarts that escaped ended colliding, by hand
-  over 300 seeds.)
+  while free, as Hadj-Alouane and Bean do, let colliding paths win back the global best.)
 
 What the rules compare as a path's violation (``path_measures``): its violation
 (``jaxarm.violation``, the deepest penetration found, cm) times its travelling distance (the
@@ -33,10 +31,8 @@ paper's eq. 5, the denominator of its fitness), so the violation per unit of fit
 two colliding paths as deep as each other, the shorter is the less violating. With the depth
 alone, a colliding path could shed penetration by a long detour (joint 1 turned the wrong way
 round the base on paper-case-1) into a local minimum of the depth, and feasibility rules followed
-it there: preset A escaped on paper-case-1 in 81 % of 300 restarts with the depth alone (82 %
-under the certified check) and in 100 % with the depth times the distance (99.7 % certified),
-and no scenario of the shipped suite escaped less often (sampled check, 200 restarts each;
-``benchmarks/RESULTS.md``).
+it there (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Constraint rules compare
+depth x distance").
 
 The reported fitness is always the paper's (0 for a colliding path) and the reported violation
 the depth alone: a rule changes how the swarm moves, never what a path is worth.

@@ -28,10 +28,9 @@ pitfall evosax fixed in its PR #109; ``tie_break="random"`` is the alternative.
 Topology: ``"global"`` (the paper's gbest: every particle follows the swarm's best personal
 best), ``"ring"`` (lbest: particle i follows the best personal best among particles i - 1, i
 and i + 1, indices modulo n) or ``"global-ring"``: the global best for the first
-``GLOBAL_RING_SHARE`` (5 %) of the iterations, the ring after (chosen by hand on 300 seeds of
-case 1 and death-trap, its block then at x = 30, for epsilon, when the rules compared the depth
-of a collision alone; ``benchmarks/RESULTS.md`` has what it does since). The reported global
-best is the swarm's best personal best either way.
+``GLOBAL_RING_SHARE`` (5 %) of the iterations, the ring after (why 5 %, and what it does
+now: ``benchmarks/RESULTS.md``, *Decisions and negative results*, "global-ring's 5 %"). The
+reported global best is the swarm's best personal best either way.
 
 Scores come from a constraint-handling rule (``jaxarm.optim.constraints``) applied to what the
 measure function reports; every personal best is scored again at every update, so rules that
@@ -259,9 +258,10 @@ class Swarm(NamedTuple):
 
     ``restarts.run_restarts_of`` runs any optimiser given this way and calls ``measure`` at one
     place, so a compiled search holds one copy of the problem's check: the certified check
-    is most of a search program, and with three copies (initial swarm, update, final best) the
-    certified search took 10.4 s to compile against 5.8 s with one (paper-case-1, by hand,
-    ``benchmarks/RESULTS.md``). ``init`` and ``step`` do one iteration, for stepping by hand.
+    is most of a search program, and three copies (initial swarm, update, final best) nearly
+    doubled its compile time (``benchmarks/RESULTS.md``, *Decisions and negative results*,
+    "One copy of the check per program ..."). ``init`` and ``step`` do one iteration, for
+    stepping by hand.
     """
 
     start: Callable
@@ -403,8 +403,8 @@ def on_first_iteration(iteration, first: Callable, later: Callable):
 
     A Python choice for a concrete iteration (stepping by hand), else ``lax.cond``: the loop's
     counter is the same for every restart, so only one side runs (computing the initial rule
-    state at every update, as a select would, made a sampled search 12-16 % slower,
-    ``benchmarks/pso_speed.py``; ``benchmarks/RESULTS.md``).
+    state at every update, as a select would, made a sampled search slower:
+    ``benchmarks/pso_speed.py``).
     """
     if isinstance(iteration, int):
         return first() if iteration == 0 else later()
