@@ -1,4 +1,5 @@
-"""The names the library accepts, kept free of JAX so the CLI can offer them without loading it.
+"""The names (and path degrees) the library accepts, kept free of JAX so the CLI can offer and
+check them without loading it.
 
 ``pso.PRESETS``, ``constraints.constraint_index`` and ``Problem`` check their arguments against
 these tuples; ``jaxarm.cli`` builds its ``choices=`` from them.
@@ -12,6 +13,14 @@ BETA_MODES = ("dimension", "particle")
 TOPOLOGIES = ("global", "ring", "global-ring")  # see jaxarm.optim.pso
 CONSTRAINTS = ("death", "feasibility", "epsilon", "penalty")  # see jaxarm.optim.constraints
 COLLISION_MODES = ("sampled", "certified")
+MIN_DEGREE = 6  # the paper's: a0..a5 meet the six rest-to-rest end conditions
+# The highest path degree. Measured by ``benchmarks/degree_limit.py`` on paper-case-2: float32
+# angles and travelling distances stay within 4e-7 (relative) of float64 up to degree 200, and
+# Simpson's rule at 101 samples within 1e-6 of a dense one up to degree 48, so accuracy does not
+# bind. The certified check, the default, does: compiling its search took 0.5 GB and 9 s at
+# degree 6, 3.1 GB and 54 s at 24, 5.1 GB at 28 and 8.0 GB (128 s) at 32, its Taylor
+# expansions having (degree + 1)^2 terms per joint; 24 keeps it within a laptop's memory.
+MAX_DEGREE = 24
 # ``trajectory.min_duration``'s limits (keywords ``max_<name>``, CLI ``--max-<name>``), with units
 LIMIT_UNITS = {"velocity": "rad/s", "acceleration": "rad/s^2", "jerk": "rad/s^3",
                "torque": "N m"}
@@ -29,6 +38,13 @@ PSO_METHODS = PRESET_NAMES + tuple(name + suffix for suffix in TOPOLOGY_SUFFIXES
 DEFAULT_METHODS = ("A-ring[inertia_end=0.4]", "A")
 DEFAULT_CONSTRAINT = "feasibility"
 DEFAULT_RESTARTS = 8  # per method
+# What one compiled search call holds: restarts x particles paths evaluated together, and
+# restarts x (iterations + 1) fitness values of history. The bounds (16 MB of float32
+# coefficients per free coefficient, 256 MB of history) stop a size such as 10**9 before it
+# allocates what no machine holds; the paper's searches and the benchmarks' are far below.
+MAX_PATHS_AT_ONCE = 2**22
+MAX_HISTORY_AT_ONCE = 2**26
+MAX_SAMPLES = 100_001  # points of r: 1000 times the paper's 101
 
 
 def split_methods(text: str) -> list[str]:

@@ -12,6 +12,7 @@ import io
 import json
 import os
 import pathlib
+import re
 import sys
 import tempfile
 
@@ -22,12 +23,28 @@ from jaxarm.choices import (
     DEFAULT_METHODS,
     DEFAULT_RESTARTS,
     LIMIT_UNITS,
+    MAX_DEGREE,
+    MIN_DEGREE,
     PSO_METHODS,
     split_methods,
 )
 
 EXIT_ERROR = 2
+EXPORT_RATE = 100.0  # Hz, --export's samples per second unless --rate says otherwise
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+class _Parser(argparse.ArgumentParser):
+    """``argparse.ArgumentParser`` whose errors are one line (``--help`` shows the usage), and
+    which reads ``-1e4``, ``-.5`` and ``-inf`` as numbers rather than as unknown flags."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)(e[-+]?\d+)?$|^-inf$",
+                                                   re.IGNORECASE)
+
+    def error(self, message: str):
+        self.exit(EXIT_ERROR, f"{self.prog}: error: {message}\n")
 
 
 def _version() -> str:
@@ -55,8 +72,10 @@ def _degrees(text: str) -> tuple[int, ...]:
         degrees = tuple(int(part) for part in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"must be comma-separated integers, got {text!r}")
-    if not degrees or min(degrees) < 6:
-        raise argparse.ArgumentTypeError(f"degrees must be >= 6, got {text!r}")
+    if min(degrees) < MIN_DEGREE:
+        raise argparse.ArgumentTypeError(f"degrees must be >= {MIN_DEGREE}, got {text!r}")
+    if max(degrees) > MAX_DEGREE:
+        raise argparse.ArgumentTypeError(f"degrees must be <= {MAX_DEGREE}, got {text!r}")
     return degrees
 
 
@@ -92,7 +111,8 @@ def _add_search_options(parser: argparse.ArgumentParser) -> None:
                         help="clearance in cm every link keeps from obstacles (default: the "
                              "scenario's, else 0)")
     parser.add_argument("--degree", type=int,
-                        help="polynomial degree >= 6 (default: the scenario's)")
+                        help=f"polynomial degree, {MIN_DEGREE} to {MAX_DEGREE} (default: the "
+                             "scenario's)")
     parser.add_argument("--samples", type=int,
                         help="odd number of points of r (default: the scenario's, else 101)")
     parser.add_argument("--init-low", type=float, metavar="LOW",
@@ -103,7 +123,7 @@ def _add_search_options(parser: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="jaxarm",
         description="Smooth collision-free joint paths for planar arms by batched PSO (JAX).",
     )
@@ -167,8 +187,8 @@ def build_parser() -> argparse.ArgumentParser:
     timing.add_argument("--export", type=pathlib.Path, metavar="FILE",
                         help="write the trajectory at --rate Hz (.csv: t, q, dq, ddq and tau "
                              "columns when the arm's masses are known; .json)")
-    timing.add_argument("--rate", type=float, default=100.0,
-                        help="samples per second of --export (100)")
+    timing.add_argument("--rate", type=float,
+                        help=f"samples per second of --export ({EXPORT_RATE:g})")
 
     study = commands.add_parser("study", help="escape probability over many seeds",
                                 description="Escape-probability study: every method over the "
@@ -220,7 +240,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _check_outputs(args) -> None:
-    """Every output file's folder exists and every figure's suffix is known, before any work."""
+    """Every output file can be written and every figure's suffix is known, before any work."""
+    from jaxarm.io.files import output_file
+
     suffixes = {"plot": FIGURE_SUFFIXES, "gif": (".gif",), "export": (".csv", ".json")}
     for name in ("json", "csv", "plot", "gif", "export"):
         path = getattr(args, name, None)
@@ -229,8 +251,16 @@ def _check_outputs(args) -> None:
         flag = f"--{name}"
         if name in suffixes and path.suffix.lower() not in suffixes[name]:
             raise ValueError(f"{flag} must end in {', '.join(suffixes[name])}, got {str(path)!r}")
-        if not path.parent.is_dir():
-            raise ValueError(f"{flag} {str(path)!r}: folder {str(path.parent)!r} does not exist")
+        output_file(flag, path)
+
+
+def _write(path: pathlib.Path, write) -> None:
+    """``write(temporary_path)``, then the file at ``path``, whole (``io.files.written``)."""
+    from jaxarm.io.files import written
+
+    with written(path) as temporary:
+        write(temporary)
+    print(f"wrote {path}")
 
 
 # Command-line flags that override a scenario's Problem fields; the error names the flag.
@@ -254,13 +284,14 @@ def _load(args):
     try:
         return problem.replace(**overrides) if overrides else problem
     except ValueError as combined:
-        for flag, field in _OVERRIDES.items():  # the flag that fails alone is the one to name
-            if field in overrides:
-                try:
-                    problem.replace(**{field: overrides[field]})
-                except ValueError as error:
-                    raise ValueError(f"--{flag.replace('_', '-')}: {error}") from None
-        raise combined
+        flags = {field: f"--{flag.replace('_', '-')}" for flag, field in _OVERRIDES.items()
+                 if field in overrides}
+        for field, flag in flags.items():  # the flag that fails alone is the one to name
+            try:
+                problem.replace(**{field: overrides[field]})
+            except ValueError as error:
+                raise ValueError(f"{flag}: {error}") from None
+        raise ValueError(f"{', '.join(flags.values())}: {combined}") from None  # together
 
 
 def _scenarios(args) -> None:
@@ -275,14 +306,18 @@ def _scenarios(args) -> None:
 def _check_settings(args) -> None:
     from jaxarm._validate import check_search
 
+    if args.command == "study":
+        at_once = min(args.chunk_size, args.restarts)
+    else:  # solve: every restart of a method at once
+        at_once = args.restarts or (1 if args.method else DEFAULT_RESTARTS)
     check_search(n_particles=args.particles, n_iters=args.iters, seed=args.seed,
-                 constraint=args.constraint or "death")
+                 constraint=args.constraint or "death", restarts_at_once=at_once)
 
 
 def _timing_limits(args, problem) -> dict:
     """The --max-* limits as ``min_duration`` keywords, checked against the problem."""
     from jaxarm._validate import positive_scalar
-    from jaxarm.trajectory import per_joint_limit
+    from jaxarm.trajectory import MIN_DURATION, per_joint_limit
 
     limits = {}
     for name in LIMIT_UNITS:
@@ -309,10 +344,30 @@ def _timing_limits(args, problem) -> dict:
                          "is the shortest that meets them)")
     if args.duration is not None:
         positive_scalar("--duration", args.duration)
-    positive_scalar("--rate", args.rate)
+        if args.duration < MIN_DURATION:
+            raise ValueError(f"--duration must be at least {MIN_DURATION:g} s, got "
+                             f"{args.duration!r}")
+    if args.rate is not None:
+        if not args.export:
+            raise ValueError("--rate sets the samples per second of --export; give --export too")
+        positive_scalar("--rate", args.rate)
+    if args.export and args.duration is not None:
+        _export_rows(args.duration, args.rate)
     if args.export and not limits and args.duration is None:
         raise ValueError("--export needs --duration or a --max-* limit to time the path")
     return limits
+
+
+def _export_rows(duration: float, rate: float | None) -> float:
+    """--rate (or its default), checked to give at most ``trajectory.MAX_ROWS`` rows."""
+    from jaxarm.trajectory import sample_count
+
+    rate = EXPORT_RATE if rate is None else rate
+    try:
+        sample_count(duration, rate)
+    except ValueError as error:
+        raise ValueError(f"--rate: {error}") from None
+    return rate
 
 
 def _report_trajectory(args, problem, result, limits: dict) -> None:
@@ -322,7 +377,7 @@ def _report_trajectory(args, problem, result, limits: dict) -> None:
     from jaxarm.trajectory import Trajectory, min_duration
 
     duration = args.duration if args.duration is not None else min_duration(
-        problem, result.best_x, **limits)
+        problem, result.best_x, **limits, allow_colliding=True)  # warned about below
     if not duration > 0:
         raise ValueError("the best path does not move: there is no trajectory to time")
     trajectory = Trajectory(problem, result.best_x, duration)
@@ -339,11 +394,10 @@ def _report_trajectory(args, problem, result, limits: dict) -> None:
     if not result.feasible:
         print("jaxarm: warning: the best path is not collision-free", file=sys.stderr)
     if args.export:
-        if args.export.suffix.lower() == ".csv":
-            trajectory.to_csv(args.export, rate=args.rate)
-        else:
-            trajectory.to_json(args.export, rate=args.rate)
-        print(f"wrote {args.export}")
+        export = (trajectory.to_csv if args.export.suffix.lower() == ".csv"
+                  else trajectory.to_json)
+        rate = _export_rows(duration, args.rate)
+        _write(args.export, lambda path: export(path, rate=rate))
 
 
 def _solve(args) -> None:
@@ -367,15 +421,14 @@ def _solve(args) -> None:
           f"{args.iters} iterations")
     print(result.summary())
     if args.json:  # solve(problem, method, **settings) repeats it (method null: the default)
-        args.json.write_text(json.dumps(run_record(problem, args.method, settings, result),
-                                        indent=2, allow_nan=False))
-        print(f"wrote {args.json}")
+        record = json.dumps(run_record(problem, args.method, settings, result), indent=2,
+                            allow_nan=False)
+        _write(args.json, lambda path: path.write_text(record, encoding="utf-8"))
     if args.plot:
-        plot.plot_motion(problem, result.best_x).savefig(args.plot, dpi=110)
-        print(f"wrote {args.plot}")
+        figure = plot.plot_motion(problem, result.best_x)
+        _write(args.plot, lambda path: figure.savefig(path, dpi=110))
     if args.gif:
-        plot.animate(problem, result.best_x, args.gif)
-        print(f"wrote {args.gif}")
+        _write(args.gif, lambda path: plot.animate(problem, result.best_x, path))
     if limits or args.duration is not None:
         _report_trajectory(args, problem, result, limits)
 
@@ -401,16 +454,17 @@ def _study(args) -> None:
     print(result.table(pairwise=args.pairwise))
     for path, text in ((args.json, result.to_json), (args.csv, result.to_csv)):
         if path:
-            path.write_text(text())
-            print(f"wrote {path}")
+            _write(path, lambda temporary: temporary.write_text(text(), encoding="utf-8"))
     if args.plot:
-        plot.plot_escape_rates(result).savefig(args.plot, dpi=110)
-        print(f"wrote {args.plot}")
+        figure = plot.plot_escape_rates(result)
+        _write(args.plot, lambda path: figure.savefig(path, dpi=110))
 
 
 def _reproduce(args) -> None:
+    from jaxarm.io.files import output_folder
     from jaxarm.paper.report import reproduce_paper
 
+    output_folder("--out", args.out)
     suite = [name.strip() for name in args.suite.split(",")] if args.suite else None
     reproduce_paper(args.out, quick=args.quick, n_restarts=args.restarts, suite=suite,
                     suite_restarts=args.suite_restarts, degrees=args.degrees, workers=args.workers)

@@ -18,6 +18,7 @@ from jaxarm.model.problem import Problem
 from jaxarm.stats import wilson_interval
 
 BLOCK = 4096  # paths per compiled call
+MAX_DRAWS = 2**24  # paths drawn at once, in float64: 134 MB per free coefficient
 
 
 class FeasibleFraction(NamedTuple):
@@ -42,7 +43,8 @@ def feasible_fraction(problem: Problem, n_paths: int = 10_000, seed: int = 0
 
     Args:
       problem: the problem; its ``bounds()`` are the box sampled.
-      n_paths: paths drawn (float64 NumPy ``default_rng(seed)``, then checked in blocks).
+      n_paths: paths drawn (float64 NumPy ``default_rng(seed)``, then checked in blocks), at
+        most ``MAX_DRAWS`` (2**24).
       seed: the draw's seed.
 
     Returns:
@@ -52,7 +54,7 @@ def feasible_fraction(problem: Problem, n_paths: int = 10_000, seed: int = 0
       >>> jaxarm.feasible_fraction(jaxarm.load_scenario("open-space"), 100).fraction
       1.0
     """
-    n_paths = positive_int("n_paths", n_paths)
+    n_paths = positive_int("n_paths", n_paths, maximum=MAX_DRAWS)
     low, high = problem.bounds()
     x = np.random.default_rng(seed).uniform(low, high, size=(n_paths, problem.n_free))
     # one program: every call has as many paths (``in_blocks``)

@@ -27,6 +27,12 @@ def exact_text(x) -> str:
                            for v in values) + "]"
 
 
+def coefficient_label(degree: int) -> str:
+    """What the free parameters x of a degree are, as the summary labels them: the paper's
+    ``a6`` (a6 of every joint) at degree 6, ``a6..a8`` (by power, then joint) at degree 8."""
+    return "a6" if degree == 6 else f"a6..a{degree}"
+
+
 def _nothing_escaped(result: Result) -> str:
     """The summary's line when no restart found a collision-free path: what ran, what to try."""
     return (f"HINT     none of {result.n_restarts} restart(s) of {result.method} under "
@@ -100,7 +106,7 @@ class Result(NamedTuple):
             f"method {self.method} ({self.config.velocity_rule}), constraint {self.constraint}, "
             f"{self.n_restarts} restart(s), degree {self.degree}, {self.collision} collision "
             f"check, seed {self.seed}",
-            f"best a   {exact_text(self.best_x)}",
+            f"{f'best {coefficient_label(self.degree)}':<8} {exact_text(self.best_x)}",
             f"fitness  {self.best_fitness:.5g}  feasible {self.feasible}  "
             f"certified {self.certified}",
             *([f"WARNING  feasible only at the {self.collision} check's samples: the motion is "
@@ -232,8 +238,9 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
             and init_particles is not None):
         raise ValueError(f"init_particles: {variants[0].name} starts from its own "
                          "population; give init_particles to a PSO method")
-    check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint)
     n_restarts = positive_int("n_restarts", n_restarts)
+    check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint,
+                 restarts_at_once=n_restarts)
     if refine not in (False, True, "all"):
         raise ValueError(f"refine must be False, True or 'all', got {refine!r}")
     given = _check_init_particles(problem, init_particles, n_particles)

@@ -126,7 +126,7 @@ class Study(NamedTuple):
     collision: str
     n_particles: int
     n_iters: int
-    seed: int
+    seed: int  # the base seed: restart i is seeded by (seed, i), ``base_seed`` in JSON and CSV
     methods: tuple[MethodStudy, ...]
 
     def method(self, label: str) -> MethodStudy:
@@ -185,7 +185,7 @@ class Study(NamedTuple):
             "collision": self.collision,
             "n_particles": self.n_particles,
             "n_iters": self.n_iters,
-            "seed": self.seed,
+            "base_seed": self.seed,
             "methods": [
                 m.summary() | {"escape_curve": m.escape_curve().round(6).tolist()}
                 for m in self.methods
@@ -194,7 +194,9 @@ class Study(NamedTuple):
         }, indent=2)
 
     def records(self) -> list[dict]:
-        """Tidy per-seed rows: one per (method, seed)."""
+        """Tidy per-seed rows: one per (method, restart). Restart ``restart`` is seeded by
+        ``(base_seed, restart)``: ``solve(problem, method, seed=base_seed)``'s restart of that
+        index."""
         rows = []
         for m in self.methods:
             for i in range(m.n_restarts):
@@ -202,7 +204,7 @@ class Study(NamedTuple):
                     "problem": self.problem_name,
                     "method": m.variant.label,
                     "constraint": m.variant.constraint,
-                    "seed": self.seed,
+                    "base_seed": self.seed,
                     "restart": int(m.restart_ids[i]),
                     "escaped": bool(m.escaped[i]),
                     "escape_iter": int(m.outcome.escape_iter[i]),
@@ -253,9 +255,10 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
       [('A', 4), ('B', 4)]
     """
     variants = parse_variants(methods, constraint)
-    check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint)
     n_restarts = positive_int("n_restarts", n_restarts)
     chunk_size = positive_int("chunk_size", chunk_size)
+    check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint,
+                 restarts_at_once=equal_chunk_length(n_restarts, chunk_size))
     if progress is None:
         progress = sys.stderr.isatty()
     bar = _progress_bar(len(variants) * n_restarts, problem.name, progress)

@@ -31,7 +31,7 @@ import jax
 import numpy as np
 from numpy.polynomial import polynomial as poly
 
-from jaxarm._validate import finite_scalar, finite_vector, positive_scalar
+from jaxarm._validate import finite_scalar, finite_vector, positive_scalar, representable
 from jaxarm.model import dynamics, path
 from jaxarm.model.problem import Problem
 
@@ -39,6 +39,10 @@ TORQUE_GRID = 4001  # points of r for the torque search
 TORQUE_REFINE = (8, 65, 3)  # best points refined, points per local grid, rounds
 PEAK_GRID = 1001  # points of r checked beside the roots
 SAFETY = 1e-9  # relative widening of the returned duration
+# s: the shortest duration. Derivatives divide by T^3 (jerk), so above it every path whose
+# coefficients float32 holds has finite float64 derivatives.
+MIN_DURATION = 1e-6
+MAX_ROWS = 10**7  # rows of ``table`` (and of an export): 1 GB of float64 columns
 
 
 class TrajectoryPoint(NamedTuple):
@@ -56,7 +60,7 @@ class Trajectory:
     Args:
       problem: the problem (its arm's ``masses`` are needed for ``torques``).
       x: the path's free parameters, shape (n_free,).
-      duration: the transfer time T (s), finite and > 0.
+      duration: the transfer time T (s), finite and at least ``MIN_DURATION`` (1e-6 s).
 
     Examples:
       >>> problem = jaxarm.load_scenario("paper-case-2")
@@ -70,8 +74,10 @@ class Trajectory:
         if not isinstance(problem, Problem):
             raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
         self.problem = problem
-        self.x = finite_vector("x", x, problem.n_free)
+        self.x = representable("x", finite_vector("x", x, problem.n_free))
         self.duration = positive_scalar("duration", duration)
+        if self.duration < MIN_DURATION:
+            raise ValueError(f"duration must be at least {MIN_DURATION:g} s, got {duration!r}")
         # coefficients[k]: of the k-th derivative in r, k = 0..5, shape (n_joints, degree + 1 - k)
         base = path.coefficients(np.asarray(problem.start), np.asarray(problem.goal), self.x,
                                  problem.degree)
@@ -121,7 +127,7 @@ class Trajectory:
     def sample_times(self, rate: float) -> np.ndarray:
         """``0, 1/rate, 2/rate, ...`` up to the duration, which is always the last time."""
         rate = positive_scalar("rate", rate)
-        steps = np.arange(math.floor(self.duration * rate * (1 + 1e-12)) + 1) / rate
+        steps = np.arange(sample_count(self.duration, rate)) / rate
         steps = steps[steps < self.duration * (1 - 1e-12)]
         return np.append(steps, self.duration)
 
@@ -157,7 +163,7 @@ class Trajectory:
                   "columns": {name: values.tolist() for name, values in self.table(rate).items()}}
         text = json.dumps(record, indent=1, allow_nan=False)
         if path_or_file is not None:
-            pathlib.Path(path_or_file).write_text(text)
+            pathlib.Path(path_or_file).write_text(text, encoding="utf-8")
         return text
 
     def peaks(self) -> dict[str, np.ndarray]:
@@ -165,6 +171,16 @@ class Trajectory:
         (n_joints,) (exact extrema, see ``min_duration``)."""
         return {name: peak_derivative(self.coefficients, order) / self.duration ** order
                 for order, name in ((1, "velocity"), (2, "acceleration"), (3, "jerk"))}
+
+
+def sample_count(duration: float, rate: float) -> int:
+    """How many times ``Trajectory.sample_times(rate)`` has before the end (up to one more):
+    ``floor(duration * rate) + 1``, or a ValueError naming the rate above ``MAX_ROWS``."""
+    span = duration * rate * (1 + 1e-12)
+    if not span < MAX_ROWS:  # inf too
+        raise ValueError(f"rate {rate:g} Hz over {duration:g} s gives {span:.3g} rows; at most "
+                         f"{MAX_ROWS:.0e}")
+    return math.floor(span) + 1
 
 
 def _polyval(coefficients: np.ndarray, r) -> np.ndarray:
@@ -227,7 +243,7 @@ def per_joint_limit(field: str, value, n_joints: int) -> np.ndarray | None:
 
 
 def min_duration(problem: Problem, x, *, max_velocity=None, max_acceleration=None,
-                 max_jerk=None, max_torque=None) -> float:
+                 max_jerk=None, max_torque=None, allow_colliding: bool = False) -> float:
     """The shortest transfer time T (s) for which the path respects every limit given.
 
     Args:
@@ -237,13 +253,18 @@ def min_duration(problem: Problem, x, *, max_velocity=None, max_acceleration=Non
       max_acceleration: rad/s^2, the same way.
       max_jerk: rad/s^3, the same way.
       max_torque: N m, the same way.
+      allow_colliding: time a path that collides too. By default a path that is not
+        collision-free under the problem's check (``jaxarm.violation`` > 0: it hits an
+        obstacle, leaves a joint range, or, under the certified check, is not proved free) is
+        an error: no duration makes it a motion to run.
 
     Returns:
       T in seconds (0.0 for a path that does not move and feels no gravity).
 
     Raises:
       ValueError: when no limit is given, a limit is not a positive finite number (or has the
-        wrong length), or a torque limit is at or below the static gravity load on the path.
+        wrong length), a torque limit is at or below the static gravity load on the path, or
+        the path collides (unless ``allow_colliding``).
 
     Examples:
       >>> problem = jaxarm.load_scenario("paper-case-2")
@@ -267,8 +288,22 @@ def min_duration(problem: Problem, x, *, max_velocity=None, max_acceleration=Non
             duration = max(duration, float(np.max((peak / limits[name]) ** (1.0 / order))))
     if limits["max_torque"] is not None:
         check_static_load(problem, limits["max_torque"])
+    if not allow_colliding:
+        _check_free(problem, trajectory.x)
+    if limits["max_torque"] is not None:
         duration = max(duration, _torque_duration(trajectory, limits["max_torque"]))
     return duration * (1.0 + SAFETY)
+
+
+def _check_free(problem: Problem, x: np.ndarray) -> None:
+    """A ValueError unless path ``x`` is collision-free under the problem's check."""
+    from jaxarm.checks.evaluate import violation
+
+    depth = float(violation(problem, x))
+    if depth > 0:
+        raise ValueError(f"x is not collision-free in {problem.name} ({problem.collision} "
+                         f"check, violation {depth:.4g}): no duration makes it a motion to run; "
+                         "pass allow_colliding=True to time it anyway")
 
 
 def check_static_load(problem: Problem, max_torque) -> np.ndarray:

@@ -54,6 +54,8 @@ def test_inverse_kinematics_errors():
         jaxarm.inverse_kinematics(jaxarm.Arm((1.0, 1.0)), 1, 0, 0)
     with pytest.raises(ValueError, match=r"pose.elbow must be \+1 or -1, got 0"):
         jaxarm.inverse_kinematics(ARM, 50, 0, 0, elbow=0)
+    with pytest.raises(ValueError, match=r"pose \(x=1e\+300, y=0, phi=0\) is unreachable"):
+        jaxarm.inverse_kinematics(ARM, 1e300, 0, 0)  # no OverflowError squaring it
 
 
 def test_float32_sincos_is_accurate_over_a_wide_range():

@@ -1,6 +1,7 @@
 """The ``jaxarm`` command (``jaxarm.cli``)."""
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -8,7 +9,7 @@ import tomli_w
 
 import jaxarm
 from jaxarm import choices, cli
-from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS
+from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS, MAX_DEGREE
 
 # The search sizes of every solve and study test here: with them (and restart counts in one
 # padded block) they run one compiled search program.
@@ -90,6 +91,17 @@ def test_cli_solve_json_describes_its_run_well_enough_to_repeat_it(capsys, tmp_p
         jaxarm.load_run(scenario)
 
 
+def test_load_run_names_the_file_it_cannot_read(tmp_path):
+    (tmp_path / "notes.txt").write_text("not JSON")
+    with pytest.raises(ValueError, match=r"notes.txt is not a solve --json record: not JSON"):
+        jaxarm.load_run(tmp_path / "notes.txt")
+    with pytest.raises(ValueError, match=r"cannot read '.*missing.json': No such file"):
+        jaxarm.load_run(tmp_path / "missing.json")
+    (tmp_path / "list.json").write_text("[1, 2]")
+    with pytest.raises(ValueError, match=r"list.json is not a solve --json record: no \['method'"):
+        jaxarm.load_run(tmp_path / "list.json")
+
+
 def test_cli_solve_times_the_best_path_and_exports_it(capsys, tmp_path):
     sizes = (*SEARCH_SIZES, "--restarts", "2")
     code, out, _ = run_cli(capsys, "solve", "paper-case-2", *sizes, "--max-velocity", "1",
@@ -98,8 +110,8 @@ def test_cli_solve_times_the_best_path_and_exports_it(capsys, tmp_path):
     assert code == 0
     best_x = json.loads((tmp_path / "r.json").read_text())["result"]["best_x"]
     problem = jaxarm.load_scenario("paper-case-2", n_samples=51)  # the problem solved
-    duration = jaxarm.min_duration(problem, best_x, max_velocity=1.0,
-                                   max_torque=[40.0, 20.0, 5.0])
+    duration = jaxarm.min_duration(problem, best_x, max_velocity=1.0,  # as the CLI times it
+                                   max_torque=[40.0, 20.0, 5.0], allow_colliding=True)
     assert f"trajectory: T = {duration:.6g} s (the shortest meeting max_velocity" in out
     assert "peak |velocity| [1.0," in out or ", 1.0" in out.split("peak |velocity|")[1]
     rows = np.loadtxt(tmp_path / "t.csv", delimiter=",", skiprows=1)
@@ -171,6 +183,32 @@ def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
          "--coordinator, --num-processes and --process-id go together"),
         (["--coordinator", "127.0.0.1:1", "--num-processes", "2", "--process-id", "2", "solve",
           "paper-case-2"], r"--process-id must be in [0, 2), got 2"),
+        (["solve", "paper-case-2", "--degree", str(MAX_DEGREE + 1)],
+         f"--degree: degree must be <= {MAX_DEGREE}, got {MAX_DEGREE + 1}"),
+        (["solve", "paper-case-2", "--init-low", "10", "--init-high", "-10"],
+         "--init-low, --init-high: init_low must be < init_high, got 10.0 and -10.0\n"),
+        (["solve", "paper-case-2", "--init-high", "1e20"],
+         "--init-high: init_high must be within +-10000"),
+        (["solve", "paper-case-2", "--margin", "1e300"],
+         "--margin: margin must be within +-100000 cm"),
+        (["solve", "paper-case-2", "--rate", "50"],
+         "--rate sets the samples per second of --export; give --export too"),
+        (["solve", "paper-case-2", "--duration", "1e-9", "--export", "t.csv"],
+         "--duration must be at least 1e-06 s, got 1e-09"),
+        (["solve", "paper-case-2", "--duration", "1e6", "--rate", "1e6", "--export", "t.csv"],
+         "--rate: rate 1e+06 Hz over 1e+06 s gives 1e+12 rows; at most 1e+07"),
+        (["solve", "paper-case-2", "--method", "evosax"],
+         "method 'evosax': an evosax strategy is named evosax:<Strategy>, such as evosax:CMA_ES"),
+        (["solve", "paper-case-2", "--json", "."], "--json '.' is a folder; give a file name"),
+        (["reproduce-paper", "--out", "a-file"], "--out 'a-file' is a file, not a folder"),
+        (["solve", "paper-case-2", "--particles", str(10**9)],
+         "8 restart(s) x 1000000000 particles is 8e+09 at once, more than 4194304 (2**22)"),
+        (["study", "paper-case-2", "--iters", str(10**9), "--restarts", "1000"],
+         "500 restart(s) x 1000000001 iterations (+1) is 5e+11 at once, more than 67108864"),
+        (["solve", "paper-case-2", "--samples", "1000001"],
+         "--samples: n_samples must be <= 100001, got 1000001"),
+        (["reproduce-paper", "--out", "a-file/results"],
+         "--out 'a-file/results': 'a-file' is a file, not a folder"),
     ],
 )
 def test_cli_errors_are_one_line_without_traceback(capsys, monkeypatch, tmp_path, argv,
@@ -182,6 +220,7 @@ def test_cli_errors_are_one_line_without_traceback(capsys, monkeypatch, tmp_path
                          ("optim.restarts", "run_restarts")):
         monkeypatch.setattr(f"jaxarm.{module}.{name}", no_work)
     monkeypatch.chdir(tmp_path)
+    (tmp_path / "a-file").write_text("not a folder")
     code, _, err = run_cli(capsys, *argv)
     assert code == 2
     assert err.count("\n") == 1 and message in err and "Traceback" not in err
@@ -249,3 +288,79 @@ def test_the_cli_offers_the_librarys_choices_without_importing_jax():
     assert "method" not in options and all(name in method.help for name in choices.PSO_METHODS)
     assert options["constraint"] == choices.CONSTRAINTS
     assert options["collision"] == choices.COLLISION_MODES
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["solve", "paper-case-2", "--seeds", "0"], "unrecognized arguments: --seeds 0"),
+        (["solve", "paper-case-2", "--restarts", "0"], "argument --restarts: must be >= 1, got 0"),
+        (["study", "paper-case-2", "--restarts", "0"], "argument --restarts: must be >= 1, got 0"),
+        (["solve", "paper-case-2", "--degree", "6.5"], "argument --degree: invalid int value"),
+        (["reproduce-paper", "--degrees", f"6,{MAX_DEGREE + 1}"],
+         f"argument --degrees: degrees must be <= {MAX_DEGREE}, got '6,{MAX_DEGREE + 1}'"),
+        (["nope"], "argument COMMAND: invalid choice: 'nope'"),
+    ],
+)
+def test_cli_usage_errors_are_one_line_too(capsys, argv, message):
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(argv)
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2
+    assert err.count("\n") == 1 and message in err and "usage:" not in err
+
+
+def test_cli_reads_negative_numbers_in_any_notation():
+    args = cli.build_parser().parse_args(["solve", "x", "--init-low", "-1e4", "--init-high",
+                                          "-.5", "--margin", "1E-3"])
+    assert (args.init_low, args.init_high, args.margin) == (-1e4, -0.5, 1e-3)
+
+
+def test_cli_numbers_float32_cannot_hold_are_one_line_naming_the_key(capsys, tmp_path):
+    scenario = tmp_path / "huge.toml"
+    scenario.write_text("[arm]\nlengths = [1e300, 30.0, 20.0]\n[start]\njoints = [0, 0.5, 0.5]\n"
+                        "[goal]\njoints = [1, 0.5, 0.5]\n")
+    code, _, err = run_cli(capsys, "solve", str(scenario), "--particles", "2", "--iters", "1")
+    assert code == 2 and err.count("\n") == 1, err  # no overflow warnings either
+    assert "huge.toml: arm.lengths[0] must be within +-100000 cm" in err and "1e+300" in err
+
+
+def test_cli_names_the_flag_of_a_missing_evosax(capsys):
+    from jaxarm.optim import evosax_adapter
+
+    if evosax_adapter.available():
+        pytest.skip("evosax is installed")
+    for argv in (["solve", "paper-case-2", "--method", "evosax:CMA_ES"],
+                 ["study", "paper-case-2", "--methods", "A,evosax:CMA_ES"],
+                 ["solve", "paper-case-2", "--method", "evosax"]):
+        code, _, err = run_cli(capsys, *argv)
+        assert code == 2 and err.count("\n") == 1
+        assert "evosax methods need evosax: pip install 'jaxarm[bench]'" in err, err
+
+
+def test_cli_interrupted_while_writing_leaves_no_half_written_file(capsys, tmp_path,
+                                                                   monkeypatch):
+    def interrupted(study):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("jaxarm.study.Study.to_csv", interrupted)
+    code, _, err = run_cli(capsys, "study", "paper-case-2", *SEARCH_SIZES, "--restarts", "2",
+                           "--methods", "A", "--json", str(tmp_path / "s.json"), "--csv",
+                           str(tmp_path / "s.csv"))
+    assert code == 130 and err == "jaxarm: interrupted\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.json"]  # written whole, and no more
+    json.loads((tmp_path / "s.json").read_text())
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def test_cli_refuses_a_read_only_output_folder_before_any_work(capsys, tmp_path):
+    folder = tmp_path / "read-only"
+    folder.mkdir()
+    folder.chmod(0o500)
+    try:
+        code, _, err = run_cli(capsys, "solve", "paper-case-2", "--json", str(folder / "r.json"))
+        assert code == 2 and "--json" in err and "is not writable" in err
+        code, _, err = run_cli(capsys, "reproduce-paper", "--out", str(folder / "results"))
+        assert code == 2 and "--out" in err and "is not writable" in err
+    finally:
+        folder.chmod(0o700)

@@ -49,3 +49,15 @@ def test_notebook_executes_and_draws_the_figures_it_was_committed_with(path, tmp
                   if c.cell_type == "code" and c.source.strip() and c.execution_count is None]
     assert not unexecuted, f"cells {unexecuted} did not run"
     assert figure_cells(notebook) == figure_cells(committed)
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+def test_notebook_outputs_print_no_float_artefacts(path):
+    """Numbers are formatted, not printed as binary floats' expansions (16.80000000000109)."""
+    import re
+
+    artefact = re.compile(r"\d\.\d*(0{6,}|9{6,})\d")
+    for cell in nbformat.read(path, as_version=4).cells:
+        for out in cell.get("outputs", []):
+            text = out.get("text", "") + str(out.get("data", {}).get("text/plain", ""))
+            assert not artefact.search(text), artefact.search(text).group()

@@ -8,6 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import jaxarm
+from jaxarm.choices import MAX_DEGREE
 import jaxarm.model.problem  # the module itself, for evaluate and vmapped_evaluate
 from jaxarm.optim.restarts import is_compiled
 from jaxarm.paper import published
@@ -110,6 +111,21 @@ def test_float32_agrees_with_float64(x):
         assert max(low[1], high[1]) < 1e-3
 
 
+def test_float32_paths_stay_accurate_at_the_highest_degree(case2, rng):
+    """``MAX_DEGREE``'s premise (``benchmarks/degree_limit.py``): float32 angles and
+    travelling distances agree with float64 there as at degree 6."""
+    problem = case2.replace(degree=MAX_DEGREE)
+    x = rng.uniform(-100.0, 100.0, (16, problem.n_free))
+    r = np.linspace(0.0, 1.0, problem.n_samples)
+    low = np.asarray(jaxarm.joint_path(problem, x.astype(np.float32), r))
+    distance = np.asarray(jaxarm.travelling_distance(problem, x.astype(np.float32)))
+    with jax.enable_x64(True):
+        high = np.asarray(jaxarm.joint_path(problem, x, r))
+        exact = np.asarray(jaxarm.travelling_distance(problem, x))
+    assert np.abs(low - high).max() <= 1e-6 * np.abs(high).max()
+    np.testing.assert_allclose(distance, exact, rtol=2e-6)
+
+
 def test_new_obstacle_data_does_not_recompile(case2):
     moved = case2.replace(world=jaxarm.World(circles=[(-40.0, -40.0, 5.0)]))
     assert moved.spec == case2.spec
@@ -138,6 +154,19 @@ ARM = jaxarm.Arm((30.0, 30.0, 20.0))
         ({"init_low": 5.0, "init_high": 5.0}, r"init_low must be < init_high"),
         ({"init_low": [0.0, 1.0]}, r"init_low must have 3 values, got 2"),
         ({"init_high": float("inf")}, r"init_high must be finite, got inf"),
+        ({"degree": MAX_DEGREE + 1}, rf"degree must be <= {MAX_DEGREE}, got {MAX_DEGREE + 1}"),
+        ({"init_low": -1.0, "init_high": -2.0}, r"init_low must be < init_high, got -1.0 and "
+                                                r"-2.0$"),
+        ({"init_low": [0.0, 1.0, 2.0], "init_high": [1.0, 2.0, 2.0]},
+         r"init_low must be < init_high at coefficient 2, got \(0.0, 1.0, 2.0\)"),
+        ({"init_high": 1e20}, r"init_high must be within \+-10000, got 1e\+20"),
+        ({"init_low": [-1.0, -1e5, -1.0]}, r"init_low\[1\] must be within \+-10000"),
+        ({"margin": 1e300}, r"margin must be within \+-100000 cm, got 1e\+300"),
+        ({"certify_tol": 1e-300}, r"certify_tol must be 0 or at least 1.18e-38 cm"),
+        ({"capacities": (10**9, 0, 4)}, r"capacities\[0\] must be <= 4096, got 1000000000"),
+        ({"capacities": (1.5, 0, 4)}, r"capacities\[0\] must be an integer, got 1.5"),
+        ({"capacities": 4}, r"capacities must be 3 slot counts .* got 4"),
+        ({"joint_limits": [(-1e39, 1.0)] * 3}, r"joint_limits\[0\]\[0\] must be within"),
     ],
 )
 def test_bad_problem_fields_name_the_field_and_value(changes, message):
@@ -151,7 +180,9 @@ def test_bad_problem_fields_name_the_field_and_value(changes, message):
     [((30.0, -1.0), r"arm.lengths\[1\] must be > 0, got -1.0"),
      ((30.0, 0.0), r"arm.lengths\[1\] must be > 0, got 0.0"),
      ((), r"at least one link"),
-     ((30.0, float("inf")), r"arm.lengths\[1\] must be finite, got inf")],
+     ((30.0, float("inf")), r"arm.lengths\[1\] must be finite, got inf"),
+     ((1e300, 30.0), r"arm.lengths\[0\] must be within \+-100000 cm, got 1e\+300"),
+     ((30.0, 1e-300), r"arm.lengths\[1\] must be 0 or at least 1.18e-38 cm")],
 )
 def test_bad_arm_lengths(lengths, message):
     with pytest.raises(ValueError, match=message):

@@ -202,6 +202,9 @@ def test_fields_in_brackets_change_a_named_method():
                             ("D[inertia_end=0.4]", "method must be one of"),
                             ("A[beta=1,beta=2]", "beta is changed twice"),
                             ("A[inertia_end=-1]", "inertia_end must be a finite number >= 0"),
+                            ("A[social_coeff=1e300]",
+                             "social_coeff must be within +-3.40282e+38, got 1e+300"),
+                            ("A[velocity_clamp=1e-300]", "velocity_clamp must be 0 or at least"),
                             ("A[topology=star]", "topology must be one of")]:
         with pytest.raises(ValueError, match=re.escape(message)):
             pso.resolve(method)

@@ -67,6 +67,34 @@ def assert_tables_render(markdown: str) -> None:
         assert index == len(lines) or lines[index] == "", lines[index]
 
 
+def test_the_report_lists_each_published_set_once_and_names_its_columns(tmp_path, case1,
+                                                                        case2):
+    class Method:  # the case-1 study's answers the reconstruction section reads
+        n_restarts = 7
+
+        def escape_interval(self):
+            return 0.1, 0.9
+
+        def escape_rate(self):
+            return 0.5
+
+    case1_study = types.SimpleNamespace(methods=[Method()], method=lambda label: Method())
+    part = report._Report(tmp_path)
+    report._reconstruction_section(part, case1, case2, case1_study)
+    report._tables_4_5(part, case2)
+    text = "\n".join(part.lines)
+    for published_set in published.CASE_2_TABLE_4 + published.CASE_2_TABLE_5:
+        assert text.count(report._vector(published_set.a6)) == 1, published_set.source
+    assert text.count(report._vector(published.CASE_2_TABLE_6[0][1])) == 1  # the others: once
+    assert_tables_render(text)
+    row = dict(problem="paper-case-2", degree=7, n_free=6, escape_death=0.5,
+               escape_feasibility=1.0, best_pso=0.19, best_refined=0.2, median_pso=0.18,
+               median_refined=0.19, pso_seconds=1.0, refine_seconds=2.0)
+    header, _, line = report.degree_refine_table([row])
+    assert header.startswith("| case | degree | free coefficients | ")
+    assert line.startswith("| paper-case-2 | 7 | 6 | ")
+
+
 def test_stage_lines_are_numbered_and_timed():
     lines = []
     stage = report._stages(lines.append, time.perf_counter() - 61.4, total=2)

@@ -4,10 +4,12 @@ import numpy as np
 import pytest
 
 import jaxarm
+from jaxarm.choices import MAX_DEGREE
 from jaxarm.io import scenario_files
 from jaxarm.testing import dense_clearance
 
 ARM = jaxarm.Arm((30.0, 30.0, 20.0))
+MINIMAL = "[arm]\nlengths = [30.0]\n[start]\njoints = [0]\n[goal]\njoints = [1]\n"
 
 
 def test_paper_case_1_postures_come_from_its_poses():
@@ -62,7 +64,30 @@ def test_load_from_path_with_pose_and_overrides(tmp_path):
         ("[arm]\nlengths = [30.0, 30.0, 20.0]\n[start]\npose = {x = 100, y = 0}\n"
          "[goal]\njoints = [0, 0, 0]", r"start.pose \(x=100, y=0, phi=0.0\) is unreachable"),
         ("[arm]\nlengths = [30.0]\n[start]\njoints = [0]\n[goal]\njoints = [1]\n"
-         "[search]\nsamples = 100", r"n_samples must be odd"),
+         "[search]\nsamples = 100", r"bad.toml: search.samples must be odd for Simpson's rule, "
+                                    r"got 100$"),
+        ("[arm]\nlengths = [30.0, 30.0, 20.0, 10.0]\n[start]\npose = {x = 50.0, y = 0.0}\n"
+         "[goal]\njoints = [1, 0, 0, 0]", r"start.pose needs a 3-link arm \(inverse kinematics\), "
+                                         r"got arm.lengths with 4 links; give start.joints"),
+        (MINIMAL + f"[search]\ndegree = {MAX_DEGREE + 1}",
+         rf"search.degree must be <= {MAX_DEGREE}, got {MAX_DEGREE + 1}"),
+        (MINIMAL + "[search]\ninit_low = 1.0\ninit_high = -1.0",
+         r"search.init_low must be < search.init_high, got 1.0 and -1.0$"),
+        (MINIMAL + "[search]\ninit_high = 1e20", r"search.init_high must be within \+-10000"),
+        (MINIMAL + "[search]\ncertify_tol = 1e-300",
+         r"search.certify_tol must be 0 or at least 1.18e-38 cm in magnitude"),
+        (MINIMAL + "[search]\ncapacities = [1000000000, 0, 0]",
+         r"search.capacities\[0\] must be <= 4096, got 1000000000"),
+        (MINIMAL + "[search]\ncapacities = 4", r"search.capacities must be 3 slot counts"),
+        (MINIMAL.replace("[30.0]", "[1e300]"), r"arm.lengths\[0\] must be within \+-100000 cm"),
+        (MINIMAL + "[[obstacles]]\ntype = 'circle'\ncenter = [0, 1e6]\nradius = 1",
+         r"obstacles\[0\].center\[1\] must be within \+-100000 cm, got 1000000.0"),
+        (MINIMAL + "[[obstacles]]\ntype = 'circle'\ncenter = [0, 50]\nradius = 1e-300",
+         r"obstacles\[0\].radius must be 0 or at least 1.18e-38 cm"),
+        (MINIMAL + "[[obstacles]]\ntype = 'box'\nmin = [-1e39, 50]\nmax = [0, 60]",
+         r"obstacles\[0\].min\[0\] must be within \+-100000 cm"),
+        (MINIMAL.replace("[arm]", "[arm]\njoint_limits = [[-1e39, 1]]"),
+         r"joint_limits\[0\]\[0\] must be within \+-3.40282e\+38"),
         ("[arm]\nlengths = [30.0]\n[start]\njoints = [0]\n[goal]\njoints = [1]\n"
          "[[obstacles]]\ntype = 'circle'\ncenter = [50, 50]\nradius = -1",
          r"obstacles\[0\] radius must be > 0, got -1.0"),
@@ -139,3 +164,24 @@ def test_every_problem_written_as_a_scenario_loads_back_equal(tmp_path):
         assert path.read_text() == scenario_files.to_toml(problem)
     with pytest.raises(ValueError, match=r"path must end in .toml, got '.*x.txt'"):
         jaxarm.save_scenario(problems[0], tmp_path / "x.txt")
+
+
+def test_a_scenario_file_that_is_not_utf8_names_the_file(tmp_path):
+    path = tmp_path / "latin.toml"
+    path.write_bytes(MINIMAL.replace("[arm]", "description = 'caf\xe9'\n[arm]").encode("latin-1"))
+    with pytest.raises(jaxarm.ScenarioError, match=r"latin.toml: not UTF-8 text"):
+        jaxarm.load_scenario(path)
+
+
+def test_saved_scenarios_write_arrays_on_one_line_and_any_text(tmp_path):
+    problem = jaxarm.load_scenario("paper-case-1").replace(
+        name="café", description="ünïcode \"quoted\" \\ and a tab\t",
+        joint_limits=[(-3.0, 3.0)] * 3)
+    folder = tmp_path / "ordner-ß"
+    folder.mkdir()
+    path = jaxarm.save_scenario(problem, folder / "é.toml")
+    text = path.read_text(encoding="utf-8")
+    assert "lengths = [30.0, 30.0, 20.0]\n" in text and "capacities = [4, 0, 4]\n" in text
+    assert "joint_limits = [[-3.0, 3.0], [-3.0, 3.0], [-3.0, 3.0]]\n" in text
+    assert "center = [46.0, 4.0]\n" in text and "[\n" not in text
+    assert jaxarm.load_scenario(path) == problem

@@ -8,6 +8,7 @@ import pytest
 from sizes import SMALL
 
 import jaxarm
+from jaxarm import search
 from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS
 from jaxarm.optim import pso
 from jaxarm.optim.methods import parse_method
@@ -103,6 +104,10 @@ def test_certified_search_returns_certified_paths(case2):
         (dict(method="A:feasibility", constraint="epsilon"),
          r"method 'A:feasibility' names constraint 'feasibility' but constraint='epsilon'"),
         (dict(method="A:"), r"constraint must be one of .* got ''"),
+        (dict(method="A", n_particles=10**9),
+         r"1 restart\(s\) x 1000000000 particles is 1e\+09 at once, more than 4194304"),
+        (dict(method="A", n_restarts=10**6), r"1000000 restart\(s\) x 20 particles is 2e\+07"),
+        (dict(method="A", n_iters=10**8), r"x 100000001 iterations \(\+1\) is 1e\+08 at once"),
     ],
 )
 def test_bad_solve_arguments(case2, kwargs, message):
@@ -242,3 +247,9 @@ def test_a_printed_answer_pasted_back_is_the_same_path(case2, collision):
     np.testing.assert_array_equal(np.asarray(pasted, np.float32), result.best_x)
     assert result.feasible
     assert float(jaxarm.fitness(problem, pasted)) == result.best_fitness
+
+
+def test_the_summary_labels_the_coefficients_as_the_paper_does(case2):
+    result = jaxarm.solve(case2, "A", n_restarts=1, **SMALL)
+    assert "\nbest a6  [" in result.summary()  # the paper's a6: one per joint
+    assert [search.coefficient_label(d) for d in (6, 8)] == ["a6", "a6..a8"]

@@ -104,6 +104,18 @@ def test_study_summaries_tables_and_records(case2):
         result.method("B")
 
 
+def test_records_name_the_base_seed_and_each_restart(case2):
+    """Restart i is seeded by (base seed, i): the columns say which is which."""
+    result = study.escape_study(case2, ["A"], n_restarts=2, seed=5, **SMALL)
+    records = result.records()
+    assert [(r["base_seed"], r["restart"]) for r in records] == [(5, 0), (5, 1)]
+    assert "seed" not in records[0]
+    assert result.to_csv().splitlines()[0].startswith("problem,method,constraint,base_seed,"
+                                                      "restart,")
+    data = json.loads(result.to_json())
+    assert data["base_seed"] == 5 and "seed" not in data
+
+
 def test_sweep_finds_feasible_intervals(case2):
     values = np.linspace(-60, 60, 241)
     fitness = study.sweep_coefficient(case2, [120.0, -50.0, 0.0], 2, values)

@@ -64,20 +64,21 @@ def test_min_duration_for_kinematic_limits_is_exact(problem, seed):
     x = rng.uniform(-150, 150, problem.n_free)
     limits = dict(max_velocity=rng.uniform(0.5, 3.0), max_acceleration=rng.uniform(1.0, 10.0, 3),
                   max_jerk=rng.uniform(5.0, 50.0))
-    for order, (name, limit) in enumerate(limits.items(), start=1):
-        duration = jaxarm.min_duration(problem, x, **{name: limit})
+    for order, (name, limit) in enumerate(limits.items(), start=1):  # x: random, colliding
+        duration = jaxarm.min_duration(problem, x, **{name: limit}, allow_colliding=True)
         peak = np.abs(dense_derivative(problem, x, order)).max(axis=0)
         exact = float(np.max((peak / limit) ** (1.0 / order)))  # the grid's peak: a lower bound
         assert exact <= duration <= exact * 1.002, (name, duration, exact)
-    both = jaxarm.min_duration(problem, x, **limits)
-    assert both == pytest.approx(max(jaxarm.min_duration(problem, x, **{name: limit})
+    both = jaxarm.min_duration(problem, x, **limits, allow_colliding=True)
+    assert both == pytest.approx(max(jaxarm.min_duration(problem, x, **{name: limit},
+                                                         allow_colliding=True)
                                      for name, limit in limits.items()), rel=1e-12)
 
 
 def test_min_duration_for_torque_limits_meets_them_and_is_tight(problem):
     limit = np.array([32.0, 16.0, 3.0])
-    for x in (PAPER_X, [0.0, 0.0, 0.0], [-120.0, 80.0, 40.0]):
-        duration = jaxarm.min_duration(problem, x, max_torque=limit)
+    for x in (PAPER_X, [0.0, 0.0, 0.0], [-120.0, 80.0, 40.0]):  # the last two collide
+        duration = jaxarm.min_duration(problem, x, max_torque=limit, allow_colliding=True)
         times = np.linspace(0.0, 1.0, 20_001)
         peak = np.abs(jaxarm.Trajectory(problem, x, duration).torques(times * duration))
         assert np.all(peak.max(axis=0) <= limit * (1 + 1e-9))
@@ -145,3 +146,25 @@ def test_plot_profiles_draws_every_quantity_with_its_limits(problem):
     assert len(acceleration.lines) == 3 and len(torque.lines) == 3 + 6
     assert max(np.abs(line.get_ydata()).max() for line in velocity.lines[:1]) == pytest.approx(
         1.0, rel=1e-3)
+
+
+def test_min_duration_refuses_a_colliding_path_unless_asked(problem):
+    colliding = [0.0, 0.0, 0.0]  # the straight path, through the obstacle
+    with pytest.raises(ValueError, match=r"x is not collision-free in paper-case-2 \(certified "
+                                         r"check, violation .*\).* allow_colliding=True"):
+        jaxarm.min_duration(problem, colliding, max_velocity=1.0)
+    assert jaxarm.min_duration(problem, colliding, max_velocity=1.0, allow_colliding=True) > 0
+    assert jaxarm.min_duration(problem, PAPER_X, max_velocity=1.0) > 0  # proved free
+
+
+def test_trajectory_sizes_that_would_not_compute_are_refused(problem):
+    with pytest.raises(ValueError, match=r"duration must be at least 1e-06 s, got 1e-300"):
+        jaxarm.Trajectory(problem, PAPER_X, duration=1e-300)
+    with pytest.raises(ValueError, match=r"x\[0\] must be within \+-3.40282e\+38"):
+        jaxarm.Trajectory(problem, [1e300, 0.0, 0.0], duration=1.0)
+    traj = jaxarm.Trajectory(problem, PAPER_X, duration=1e6)
+    with pytest.raises(ValueError, match=r"rate 1e\+06 Hz over 1e\+06 s gives 1e\+12 rows; at "
+                                         r"most 1e\+07"):
+        traj.table(rate=1e6)
+    with pytest.raises(ValueError, match=r"gives inf rows"):
+        traj.table(rate=1e305)

@@ -19,6 +19,12 @@ from jaxarm.testing import oracle_separation
         (dict(boxes=[((1.0, 1.0), (0.0, 2.0))]), r"world.boxes\[0\] needs min < max"),
         (dict(polygons=[[(0, 0), (1, 1), (2, 2)]]), r"world.polygons\[0\] is degenerate"),
         (dict(polygons=[[(0, 0), (1, 0)]]), r"world.polygons\[0\] must be at least 3"),
+        (dict(circles=[(0.0, 1e300, 1.0)]),
+         r"world.circles\[0\].center\[1\] must be within \+-100000 cm, got 1e\+300"),
+        (dict(circles=[(0.0, 50.0, 1e-40)]), r"world.circles\[0\].radius must be 0 or at least"),
+        (dict(boxes=[((0.0, 0.0), (2e5, 1.0))]), r"world.boxes\[0\].max\[0\] must be within"),
+        (dict(polygons=[[(0, 0), (1e39, 0), (0, 1)]]),
+         r"world.polygons\[0\].vertices\[1\]\[0\] must be within \+-100000 cm"),
     ],
 )
 def test_bad_worlds(world, message):

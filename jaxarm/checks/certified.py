@@ -297,7 +297,8 @@ def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin):
     n_joints = len(about_sample[0])
     about_centre = []  # about_centre[m][j] = theta_j^(m)(centre) / m!
     for m in range(degree + 1):
-        terms = [[math.comb(i, m) * about_sample[i][j] for j in range(n_joints)]
+        # float: an int binomial past int32 (degree 34 and up) fails to convert in JAX
+        terms = [[float(math.comb(i, m)) * about_sample[i][j] for j in range(n_joints)]
                  for i in range(m, degree + 1)]
         value = terms[-1]
         for term in reversed(terms[:-1]):  # Horner in the shift

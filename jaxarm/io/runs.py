@@ -35,11 +35,24 @@ def run_record(problem: Problem, method: str | None, settings: dict, result: Res
 
 
 def load_run(path: str | pathlib.Path) -> SavedRun:
-    """The run that ``jaxarm solve --json path`` saved (see ``run_record``)."""
-    data = json.loads(pathlib.Path(path).read_text())
-    missing = {"problem", "method", "settings", "result"} - set(data)
+    """The run that ``jaxarm solve --json path`` saved (see ``run_record``).
+
+    Raises:
+      ValueError: naming the file: unreadable, not JSON, or not such a record.
+    """
+    try:
+        data = json.loads(pathlib.Path(path).read_text(encoding="utf-8"))
+    except OSError as error:
+        raise ValueError(f"cannot read {str(path)!r}: {error.strerror or error}") from None
+    except ValueError as error:  # JSONDecodeError, UnicodeDecodeError
+        raise ValueError(f"{path} is not a solve --json record: not JSON ({error})") from None
+    missing = {"problem", "method", "settings", "result"} - set(data if isinstance(data, dict)
+                                                                 else ())
     if missing:
         raise ValueError(f"{path} is not a solve --json record: no {sorted(missing)}")
-    return SavedRun(problem=problem_from_table(data["problem"]), method=data["method"],
-                    settings=data["settings"], result=Result.from_dict(data["result"]),
-                    versions={"jaxarm": data.get("jaxarm"), "jax": data.get("jax")})
+    try:
+        return SavedRun(problem=problem_from_table(data["problem"]), method=data["method"],
+                        settings=data["settings"], result=Result.from_dict(data["result"]),
+                        versions={"jaxarm": data.get("jaxarm"), "jax": data.get("jax")})
+    except (ValueError, TypeError, KeyError) as error:
+        raise ValueError(f"{path}: not a valid solve --json record: {error}") from None

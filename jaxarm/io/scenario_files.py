@@ -17,7 +17,7 @@ Schema (units: cm and rad)::
     pose = { x = 50.0, y = -10.0, phi = 0.0, elbow = 1 }
     [goal]                             # same as [start]
     [search]                           # all optional
-    degree = 6                         # polynomial degree >= 6
+    degree = 6                         # polynomial degree, 6 to MAX_DEGREE (jaxarm.choices)
     samples = 101                      # odd
     collision = "certified"            # default; "sampled" is the paper's check at the samples
     margin = 0.0                       # cm every link keeps from every obstacle
@@ -31,8 +31,14 @@ Schema (units: cm and rad)::
     type = "box"                       # min = [xmin, ymin], max = [xmax, ymax]
     type = "polygon"                   # vertices = [[x, y], ...], convex, either order
 
-``save_scenario`` (or ``to_toml``) writes a ``Problem`` in this schema; loading the file
-gives back an equal ``Problem``.
+Numbers must be ones float32, which the search computes in, holds: lengths, coordinates,
+radii, ``margin`` and ``certify_tol`` within +-1e5 cm (``_validate.MAX_CM``), ``init_low`` and
+``init_high`` within +-1e4 (``problem.MAX_COEFFICIENT``). An error names the key as written
+here (``search.samples``, ``obstacles[2].center``).
+
+``save_scenario`` (or ``to_toml``) writes a ``Problem`` in this schema, every key above that
+has a value (``units`` and ``capacities`` included); loading the file gives back an equal
+``Problem``.
 """
 
 from __future__ import annotations
@@ -44,7 +50,7 @@ import tomllib
 import numpy as np
 import tomli_w
 
-from jaxarm._validate import finite_scalar, finite_vector
+from jaxarm._validate import finite_scalar, finite_vector, renamed
 from jaxarm.model import world as world_lib
 from jaxarm.model.arm import Arm, inverse_kinematics
 from jaxarm.model.problem import Problem
@@ -63,6 +69,9 @@ _SEARCH_FIELDS = {"degree": "degree", "samples": "n_samples", "collision": "coll
                   "init_low": "init_low", "init_high": "init_high", "margin": "margin",
                   "certify_tol": "certify_tol", "certify_budget": "certify_budget",
                   "capacities": "capacities"}
+# Problem field -> its key in a scenario file, for the errors a Problem raises
+_FIELD_KEYS = {field: f"search.{key}" for key, field in _SEARCH_FIELDS.items()} | {
+    "joint_limits": "arm.joint_limits"}
 POSE_TOLERANCE = 1e-6  # cm and rad: how closely a posture's joints and pose must agree
 _OBSTACLE_KEYS = {
     "circle": {"type", "center", "radius"},
@@ -76,7 +85,7 @@ def available() -> dict[str, str]:
     out = {}
     for entry in sorted(SHIPPED.iterdir(), key=lambda e: e.name):
         if entry.name.endswith(".toml"):
-            data = tomllib.loads(entry.read_text())
+            data = tomllib.loads(entry.read_text(encoding="utf-8"))
             out[entry.name[: -len(".toml")]] = data.get("description", "")
     return out
 
@@ -116,14 +125,17 @@ def _read(name_or_path) -> tuple[str, str]:
     candidate = pathlib.Path(name_or_path)
     if candidate.suffix == ".toml" or candidate.exists():
         try:
-            return candidate.read_text(), str(candidate)
+            return candidate.read_text(encoding="utf-8"), str(candidate)
         except OSError as error:
             raise ScenarioError(f"cannot read scenario file {str(candidate)!r}: {error.strerror}")
+        except UnicodeDecodeError as error:
+            raise ScenarioError(f"{candidate}: not UTF-8 text, as TOML must be ({error.reason} at "
+                                f"byte {error.start})") from None
     resource = SHIPPED / f"{name_or_path}.toml"
     if not resource.is_file():
         names = ", ".join(available())
         raise ScenarioError(f"unknown scenario {str(name_or_path)!r}; shipped scenarios: {names}")
-    return resource.read_text(), f"{name_or_path}.toml"
+    return resource.read_text(encoding="utf-8"), f"{name_or_path}.toml"
 
 
 def _table(data: dict, key: str, required: bool = True) -> dict:
@@ -152,6 +164,9 @@ def _posture(data: dict, which: str, arm: Arm):
     if not isinstance(pose, dict) or not {"x", "y"} <= set(pose):
         raise ScenarioError(f"{which}.pose must be {{x, y, phi, elbow}}, got {pose!r}")
     _unknown(pose, {"x", "y", "phi", "elbow"}, f"in {which}.pose: ")
+    if arm.n_joints != 3:
+        raise ScenarioError(f"{which}.pose needs a 3-link arm (inverse kinematics), got "
+                            f"arm.lengths with {arm.n_joints} links; give {which}.joints")
     try:
         joints = inverse_kinematics(arm, pose["x"], pose["y"], pose.get("phi", 0.0),
                                     pose.get("elbow", 1))
@@ -219,16 +234,15 @@ def _problem(data: dict, default_name: str) -> Problem:
     search = _table(data, "search", required=False)
     _unknown(search, set(_SEARCH_FIELDS), "in [search]: ")
     fields = {field: search[key] for key, field in _SEARCH_FIELDS.items() if key in search}
-    return Problem(
-        arm=arm,
-        start=_posture(data, "start", arm),
-        goal=_posture(data, "goal", arm),
-        world=_obstacles(data.get("obstacles", [])),
-        name=str(data.get("name", default_name)),
-        description=str(data.get("description", "")),
-        joint_limits=arm_table.get("joint_limits"),
-        **fields,
-    )
+    start, goal = _posture(data, "start", arm), _posture(data, "goal", arm)
+    world = _obstacles(data.get("obstacles", []))
+    try:
+        return Problem(arm=arm, start=start, goal=goal, world=world,
+                       name=str(data.get("name", default_name)),
+                       description=str(data.get("description", "")),
+                       joint_limits=arm_table.get("joint_limits"), **fields)
+    except ValueError as error:  # named as the file names it: search.samples, not n_samples
+        raise ScenarioError(renamed(str(error), _FIELD_KEYS)) from None
 
 
 def problem_from_table(table: dict) -> Problem:
@@ -275,8 +289,26 @@ def _arm_table(problem: Problem) -> dict:
 
 
 def to_toml(problem: Problem) -> str:
-    """``problem`` as scenario-file text (postures as joints, floats written exactly)."""
-    return tomli_w.dumps(scenario_table(problem))
+    """``problem`` as scenario-file text (postures as joints, floats written exactly, arrays on
+    one line as in the shipped files)."""
+    table = scenario_table(problem)
+    obstacles = table.pop("obstacles")
+    blocks = ["\n".join(_toml_lines({k: v for k, v in table.items() if not isinstance(v, dict)}))]
+    blocks += ["\n".join([f"[{key}]", *_toml_lines(value)]) for key, value in table.items()
+               if isinstance(value, dict)]
+    blocks += ["\n".join(["[[obstacles]]", *_toml_lines(entry)]) for entry in obstacles]
+    return "\n\n".join(blocks) + "\n"
+
+
+def _toml_lines(table: dict) -> list[str]:
+    return [f"{key} = {_toml_value(value)}" for key, value in table.items()]
+
+
+def _toml_value(value) -> str:
+    """One TOML value on one line: arrays inline, scalars as ``tomli_w`` writes them."""
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(map(_toml_value, value)) + "]"
+    return tomli_w.dumps({"v": value}).removeprefix("v = ").rstrip("\n")
 
 
 def save_scenario(problem: Problem, path: str | pathlib.Path) -> pathlib.Path:
@@ -288,5 +320,5 @@ def save_scenario(problem: Problem, path: str | pathlib.Path) -> pathlib.Path:
     path = pathlib.Path(path)
     if path.suffix != ".toml":
         raise ValueError(f"path must end in .toml, got {str(path)!r}")
-    path.write_text(to_toml(problem))
+    path.write_text(to_toml(problem), encoding="utf-8")
     return path

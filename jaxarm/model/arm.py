@@ -13,7 +13,7 @@ import math
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm._validate import finite_scalar, finite_vector
+from jaxarm._validate import MAX_CM, finite_scalar, finite_vector, representable
 
 
 @dataclasses.dataclass(frozen=True)
@@ -21,7 +21,8 @@ class Arm:
     """A planar serial arm.
 
     Args:
-      lengths: link lengths (cm), base first; any number of links, each finite and > 0.
+      lengths: link lengths (cm), base first; any number of links, each > 0 and at most
+        ``MAX_CM`` (1e5 cm: float32 geometry, see ``jaxarm._validate``).
       masses: link masses (kg), one per link, each finite and >= 0, or None when unknown
         (kinematics only; ``jaxarm.model.dynamics`` needs them). Links are uniform rods.
       gravity: gravitational acceleration along -y (m/s^2), finite and >= 0; 0 for an arm
@@ -43,6 +44,7 @@ class Arm:
         for index, length in enumerate(lengths):
             if length <= 0:
                 raise ValueError(f"arm.lengths[{index}] must be > 0, got {float(length)!r}")
+        representable("arm.lengths", lengths, MAX_CM, " cm")
         object.__setattr__(self, "lengths", tuple(float(v) for v in lengths))
         if self.masses is not None:
             masses = finite_vector("arm.masses", self.masses)
@@ -174,12 +176,13 @@ def inverse_kinematics(arm: Arm, x: float, y: float, phi: float, elbow: int = 1)
     l1, l2, l3 = arm.lengths
     wrist_x = x - l3 * math.cos(phi)
     wrist_y = y - l3 * math.sin(phi)
-    distance_sq = wrist_x**2 + wrist_y**2
-    cos_elbow = (distance_sq - l1**2 - l2**2) / (2 * l1 * l2)
+    distance = math.hypot(wrist_x, wrist_y)  # no overflow, unlike squaring a huge x
+    cos_elbow = ((distance**2 - l1**2 - l2**2) / (2 * l1 * l2) if distance <= 2 * (l1 + l2)
+                 else math.inf)
     if not -1.0 <= cos_elbow <= 1.0:
         raise ValueError(
             f"pose (x={x}, y={y}, phi={phi}) is unreachable: the wrist at "
-            f"({wrist_x:.4g}, {wrist_y:.4g}) is {math.sqrt(distance_sq):.4g} cm from the base, "
+            f"({wrist_x:.4g}, {wrist_y:.4g}) is {distance:.4g} cm from the base, "
             f"outside [{abs(l1 - l2):.4g}, {l1 + l2:.4g}]"
         )
     theta2 = elbow * math.acos(cos_elbow)

@@ -27,7 +27,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-MIN_DEGREE = 6
+from jaxarm._validate import positive_int
+from jaxarm.choices import MAX_DEGREE, MIN_DEGREE
 
 
 def n_free_per_joint(degree: int) -> int:
@@ -107,11 +108,13 @@ def raise_degree(x, n_joints: int, degree: int):
     Args:
       x: free parameters of some degree d, shape (..., n_joints * (d - 5)).
       n_joints: number of joints.
-      degree: the new degree, >= d.
+      degree: the new degree, >= d and at most ``MAX_DEGREE``.
 
     Returns:
       Array of shape (..., n_joints * (degree - 5)), describing identical joint paths.
     """
+    positive_int("degree", degree, minimum=MIN_DEGREE, maximum=MAX_DEGREE)
+    positive_int("n_joints", n_joints)
     x = np.asarray(x)
     extra = n_joints * n_free_per_joint(degree) - x.shape[-1]
     if extra < 0 or x.shape[-1] % n_joints:

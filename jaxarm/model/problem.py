@@ -18,13 +18,15 @@ import numpy as np
 
 from jaxarm._compile.jit import jit
 from jaxarm._validate import (
+    MAX_CM,
     angles_outside,
     finite_scalar,
     finite_vector,
     joint_limit_pairs,
     positive_int,
+    representable,
 )
-from jaxarm.choices import COLLISION_MODES, one_of
+from jaxarm.choices import COLLISION_MODES, MAX_SAMPLES, one_of
 from jaxarm.model import path, posture
 from jaxarm.model.arm import Arm
 from jaxarm.model.world import World, WorldArrays
@@ -32,6 +34,10 @@ from jaxarm.model.world import World, WorldArrays
 # Pieces per path the certified check may test: it counts them in an int32 it shares with
 # three flags, and a path can test a few more than its budget.
 MAX_CERTIFY_BUDGET = 2**27
+# Obstacle slots of each kind (circles, polygons, vertices per polygon): every slot is computed
+# for every link at every sample, so a scene needs far fewer; a bound that stops a typo such as
+# 10**9 before it allocates gigabytes.
+MAX_SLOTS = 2**12
 
 
 @functools.partial(jit, storable=True)
@@ -86,17 +92,19 @@ class Problem:
       start: joint angles (rad) at r = 0, shape (n_joints,).
       goal: joint angles (rad) at r = 1, shape (n_joints,).
       world: the obstacles.
-      degree: polynomial degree d >= 6 (d - 5 free coefficients per joint).
-      n_samples: odd number of points of r in [0, 1] for Simpson's rule and the sampled check.
+      degree: polynomial degree d, 6 to ``MAX_DEGREE`` (d - 5 free coefficients per joint).
+      n_samples: odd number of points of r in [0, 1] for Simpson's rule and the sampled check,
+        at most ``MAX_SAMPLES`` (100,001).
       collision: ``"certified"`` (default: every r in [0, 1] proved free, see
         ``jaxarm.checks.certified``) or ``"sampled"`` (the paper's check at the n samples only).
       init_low: low end of the range the initial swarm is drawn from, a scalar or shape
-        (n_free,).
+        (n_free,), within +-``MAX_COEFFICIENT`` (1e4).
       init_high: high end of that range, the same way.
       name: the problem's name in reports.
       description: one line for reports.
       capacities: obstacle slots (circles, polygons, vertices per polygon); default from world.
-      margin: clearance (cm) every link must keep from every obstacle; 0 allows grazing.
+      margin: clearance (cm) every link must keep from every obstacle; 0 allows grazing. Like
+        every length and coordinate, at most ``MAX_CM`` (1e5 cm, float32 geometry).
       certify_tol: the certified check's tolerance (cm): every motion whose clearance exceeds
         the margin by at least this much is certified free.
       certify_budget: pieces the certified check tests per path before it splits no more: a
@@ -142,18 +150,21 @@ class Problem:
         set_field = functools.partial(object.__setattr__, self)
         for which in ("start", "goal"):
             set_field(which, _posture(which, getattr(self, which), self.arm))
-        degree = positive_int("degree", self.degree, minimum=path.MIN_DEGREE)
+        degree = positive_int("degree", self.degree, minimum=path.MIN_DEGREE,
+                              maximum=path.MAX_DEGREE)
         set_field("degree", degree)
-        n_samples = positive_int("n_samples", self.n_samples, minimum=3)
+        n_samples = positive_int("n_samples", self.n_samples, minimum=3, maximum=MAX_SAMPLES)
         if n_samples % 2 == 0:
             raise ValueError(f"n_samples must be odd for Simpson's rule, got {n_samples}")
         one_of("collision", self.collision, COLLISION_MODES)
         set_field("margin", finite_scalar("margin", self.margin))
         if self.margin < 0:
             raise ValueError(f"margin must be >= 0 (cm), got {self.margin!r}")
+        representable("margin", self.margin, MAX_CM, " cm")
         set_field("certify_tol", finite_scalar("certify_tol", self.certify_tol))
         if self.certify_tol <= 0:
             raise ValueError(f"certify_tol must be > 0 (cm), got {self.certify_tol!r}")
+        representable("certify_tol", self.certify_tol, MAX_CM, " cm")
         set_field("certify_budget", positive_int("certify_budget", self.certify_budget,
                                                  minimum=1, maximum=MAX_CERTIFY_BUDGET))
         low, high = (self._bound(name) for name in ("init_low", "init_high"))
@@ -161,9 +172,8 @@ class Problem:
         set_field("init_high", high)
         bad = np.nonzero(~(np.asarray(self.bounds()[0]) < np.asarray(self.bounds()[1])))[0]
         if bad.size:
-            raise ValueError(
-                f"init_low must be < init_high, got {low!r} and {high!r} (index {int(bad[0])})"
-            )
+            at = "" if np.ndim(low) == np.ndim(high) == 0 else f" at coefficient {int(bad[0])}"
+            raise ValueError(f"init_low must be < init_high{at}, got {low!r} and {high!r}")
         if self.joint_limits is not None:
             set_field("joint_limits", joint_limit_pairs(self.joint_limits, self.n_joints))
             for which in ("start", "goal"):
@@ -171,16 +181,15 @@ class Problem:
                     low, high = self.joint_limits[joint]
                     raise ValueError(f"{which} joint {joint + 1} is {angle!r} rad, outside "
                                      f"joint_limits[{joint}] = ({low!r}, {high!r})")
-        capacities = self.capacities or self.world.capacities()
-        self.world.pack(capacities)  # raises if the capacities are too small
-        set_field("capacities", tuple(int(c) for c in capacities))
+        set_field("capacities", _capacities(self.capacities, self.world))
         self._check_postures()
 
     def _bound(self, name: str):
         value = getattr(self, name)
         if np.ndim(value) == 0:
-            return finite_scalar(name, value)
-        return tuple(finite_vector(name, value, self.n_free).tolist())
+            return representable(name, finite_scalar(name, value), MAX_COEFFICIENT)
+        return tuple(representable(name, finite_vector(name, value, self.n_free),
+                                   MAX_COEFFICIENT).tolist())
 
     def _check_postures(self) -> None:
         """Start, then goal: neither may overlap an obstacle or come closer than the margin."""
@@ -280,6 +289,10 @@ class Problem:
 
 
 MAX_ANGLE = 100.0  # rad; beyond it float32 angles lose the precision the geometry needs
+# The initial range's ends: a degree-6 coefficient a swings its joint by up to |a| / 64 rad
+# (g_6 = r^3 (r - 1)^3), so 1e4 starts the swarm within about MAX_ANGLE of the ends; from a
+# range of 1e10 the sampled check called a path that turns 1e8 rad collision-free.
+MAX_COEFFICIENT = 1e4
 
 
 def share_capacities(problems) -> list[Problem]:
@@ -318,6 +331,23 @@ def share_capacities(problems) -> list[Problem]:
         largest[problem.n_joints] = tuple(map(max, known, problem.capacities))
     return [problem if problem.capacities == largest[problem.n_joints]
             else problem.replace(capacities=largest[problem.n_joints]) for problem in problems]
+
+
+def _capacities(value, world: World) -> tuple[int, int, int]:
+    """``value`` (or the world's default) as three slot counts that hold ``world``, each at most
+    ``MAX_SLOTS``, or a ValueError naming ``capacities``."""
+    capacities = world.capacities() if value is None else value
+    try:
+        counts = tuple(capacities)
+    except TypeError:
+        counts = ()
+    if len(counts) != 3:
+        raise ValueError(f"capacities must be 3 slot counts (circles, polygons, vertices per "
+                         f"polygon), got {value!r}")
+    for index, count in enumerate(counts):
+        positive_int(f"capacities[{index}]", count, minimum=0, maximum=MAX_SLOTS)
+    world.pack(counts)  # raises if the capacities are too small
+    return tuple(int(c) for c in counts)
 
 
 def _posture(which: str, value, arm: Arm) -> tuple[float, ...]:

@@ -24,7 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm._compile.jit import rank_promotion_allowed
-from jaxarm._validate import finite_vector
+from jaxarm._validate import MAX_CM, finite_vector, representable
 
 _TINY = 1e-30
 
@@ -178,6 +178,8 @@ def check_circle(field: str, circle) -> tuple[float, float, float]:
     values = finite_vector(field, circle, length=3)
     if values[2] <= 0:
         raise ValueError(f"{field} radius must be > 0, got {float(values[2])!r}")
+    representable(f"{field}.center", values[:2], MAX_CM, " cm")
+    representable(f"{field}.radius", values[2], MAX_CM, " cm")
     return tuple(float(v) for v in values)
 
 
@@ -187,8 +189,10 @@ def check_box(field: str, box) -> tuple[tuple[float, float], tuple[float, float]
         low, high = box
     except (TypeError, ValueError):
         raise ValueError(f"{field} must be ((xmin, ymin), (xmax, ymax)), got {box!r}") from None
-    low = finite_vector(f"{field} min", low, length=2)
-    high = finite_vector(f"{field} max", high, length=2)
+    low = representable(f"{field}.min", finite_vector(f"{field}.min", low, length=2), MAX_CM,
+                        " cm")
+    high = representable(f"{field}.max", finite_vector(f"{field}.max", high, length=2), MAX_CM,
+                         " cm")
     if not np.all(low < high):
         raise ValueError(f"{field} needs min < max on both axes, got min {low} max {high}")
     return (float(low[0]), float(low[1])), (float(high[0]), float(high[1]))
@@ -204,6 +208,7 @@ def check_polygon(field: str, polygon) -> tuple[tuple[float, float], ...]:
         raise ValueError(f"{field} must be at least 3 (x, y) vertices, got {polygon!r}")
     if not np.all(np.isfinite(vertices)):
         raise ValueError(f"{field} vertices must be finite, got {polygon!r}")
+    representable(f"{field}.vertices", vertices, MAX_CM, " cm")
     edges = np.roll(vertices, -1, axis=0) - vertices
     turns = edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1)
     scale = np.max(np.abs(vertices)) + 1.0

@@ -46,12 +46,14 @@ def available() -> bool:
     return importlib.util.find_spec("evosax") is not None
 
 
+MISSING = "evosax methods need evosax: pip install 'jaxarm[bench]' (or pip install evosax)"
+
+
 def _evosax_algorithms():
     try:
         from evosax import algorithms
     except ImportError:
-        raise ValueError("evosax methods need evosax: pip install 'jaxarm[bench]' (or pip "
-                         "install evosax)") from None
+        raise ValueError(MISSING) from None
     return algorithms
 
 
@@ -108,6 +110,14 @@ def check_constraint(config, constraint: str, label: str) -> None:
 
 
 def is_strategy(method) -> bool:
+    """Whether ``method`` is a ``StrategyConfig`` or a name ``"evosax:..."``; a name that
+    means evosax without that spelling ("evosax", "EvoSAX:CMA_ES") is a ValueError saying
+    how to write it."""
+    if isinstance(method, str) and not method.startswith(PREFIX) and (
+            method.partition(":")[0].strip().lower() == PREFIX[:-1]):
+        raise ValueError(f"method {method!r}: an evosax strategy is named "
+                         f"{PREFIX}<Strategy>, such as {PREFIX}CMA_ES"
+                         + ("" if available() else f"; {MISSING}"))
     return isinstance(method, StrategyConfig) or (isinstance(method, str)
                                                    and method.startswith(PREFIX))
 

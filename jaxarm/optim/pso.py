@@ -47,6 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm._validate import representable
 from jaxarm.choices import (
     BETA_MODES,
     PSO_METHODS,
@@ -119,10 +120,13 @@ class PSOConfig(NamedTuple):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+            representable(name, value)  # the search runs in float32
         if self.velocity_clamp is not None and not (
             isinstance(self.velocity_clamp, (int, float)) and 0 < self.velocity_clamp < math.inf
         ):
             raise ValueError(f"velocity_clamp must be None or > 0, got {self.velocity_clamp!r}")
+        if self.velocity_clamp is not None:
+            representable("velocity_clamp", self.velocity_clamp)
         if self.velocity_rule == "constriction" and self.cognitive_coeff + self.social_coeff <= 4:
             raise ValueError(
                 "constriction needs cognitive_coeff + social_coeff > 4, got "
