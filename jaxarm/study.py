@@ -204,6 +204,7 @@ class Study(NamedTuple):
                     "problem": self.problem_name,
                     "method": m.variant.label,
                     "constraint": m.variant.constraint,
+                    "collision": self.collision,  # the check that decided "escaped"
                     "base_seed": self.seed,
                     "restart": int(m.restart_ids[i]),
                     "escaped": bool(m.escaped[i]),

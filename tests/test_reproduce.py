@@ -87,11 +87,12 @@ def test_the_report_lists_each_published_set_once_and_names_its_columns(tmp_path
         assert text.count(report._vector(published_set.a6)) == 1, published_set.source
     assert text.count(report._vector(published.CASE_2_TABLE_6[0][1])) == 1  # the others: once
     assert_tables_render(text)
-    row = dict(problem="paper-case-2", degree=7, n_free=6, escape_death=0.5,
-               escape_feasibility=1.0, best_pso=0.19, best_refined=0.2, median_pso=0.18,
-               median_refined=0.19, pso_seconds=1.0, refine_seconds=2.0)
+    row = dict(problem="paper-case-2", collision="sampled", degree=7, n_free=6,
+               escape_death=0.5, escape_feasibility=1.0, best_pso=0.19, best_refined=0.2,
+               median_pso=0.18, median_refined=0.19, pso_seconds=1.0, refine_seconds=2.0)
     header, _, line = report.degree_refine_table([row])
     assert header.startswith("| case | degree | free coefficients | ")
+    assert header.count("escape, ") == 2 and header.count("sampled check") == 2
     assert line.startswith("| paper-case-2 | 7 | 6 | ")
 
 

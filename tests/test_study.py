@@ -99,6 +99,7 @@ def test_study_summaries_tables_and_records(case2):
     assert json.loads(result.to_json())["methods"][1]["method"] == "C:feasibility"
     records = result.records()
     assert len(records) == 12 and records[0]["restart"] == 0
+    assert {r["collision"] for r in records} == {result.collision}
     assert result.to_csv().splitlines()[0].startswith("problem,method,constraint")
     with pytest.raises(KeyError, match="no method 'B'"):
         result.method("B")
@@ -110,8 +111,8 @@ def test_records_name_the_base_seed_and_each_restart(case2):
     records = result.records()
     assert [(r["base_seed"], r["restart"]) for r in records] == [(5, 0), (5, 1)]
     assert "seed" not in records[0]
-    assert result.to_csv().splitlines()[0].startswith("problem,method,constraint,base_seed,"
-                                                      "restart,")
+    assert result.to_csv().splitlines()[0].startswith(
+        "problem,method,constraint,collision,base_seed,restart,")
     data = json.loads(result.to_json())
     assert data["base_seed"] == 5 and "seed" not in data
 

@@ -794,7 +794,8 @@ def compare_degrees_and_refine(problems, degrees=(6, 7, 8), n_restarts: int = 10
             pso_fitness = rules.best_fitness[feasible]
             refined = polished.fitness[feasible]
             rows.append({
-                "problem": problem.name, "degree": degree, "n_free": higher.n_free,
+                "problem": problem.name, "collision": problem.collision, "degree": degree,
+                "n_free": higher.n_free,
                 "escape_death": float(np.mean(death.escape_iter >= 0)),
                 "escape_feasibility": float(np.mean(rules.escape_iter >= 0)),
                 "best_pso": float(pso_fitness.max(initial=0.0)),
@@ -807,10 +808,13 @@ def compare_degrees_and_refine(problems, degrees=(6, 7, 8), n_restarts: int = 10
 
 
 def degree_refine_table(rows: list[dict]) -> list[str]:
-    """Markdown lines for ``compare_degrees_and_refine``'s rows."""
+    """Markdown lines for ``compare_degrees_and_refine``'s rows (of one collision check, which
+    the escape columns name)."""
+    check = rows[0]["collision"]
     lines = [
-        "| case | degree | free coefficients | escape, death | escape, feasibility | best PSO | "
-        "best PSO + refine | median PSO | median PSO + refine | PSO time (s) | refine time (s) |",
+        f"| case | degree | free coefficients | escape, death, {check} check | escape, "
+        f"feasibility, {check} check | best PSO | best PSO + refine | median PSO | median PSO "
+        "+ refine | PSO time (s) | refine time (s) |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
