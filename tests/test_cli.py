@@ -2,6 +2,7 @@
 
 import json
 import os
+import pathlib
 
 import numpy as np
 import pytest
@@ -340,15 +341,17 @@ def test_cli_names_the_flag_of_a_missing_evosax(capsys):
 
 def test_cli_interrupted_while_writing_leaves_no_half_written_file(capsys, tmp_path,
                                                                    monkeypatch):
-    def interrupted(study):
-        raise KeyboardInterrupt
+    class Figure:  # Ctrl-C halfway through writing the figure
+        def savefig(self, path, dpi):
+            pathlib.Path(path).write_bytes(b"half a PNG")
+            raise KeyboardInterrupt
 
-    monkeypatch.setattr("jaxarm.study.Study.to_csv", interrupted)
+    monkeypatch.setattr("jaxarm.plot.plot_escape_rates", lambda study: Figure())
     code, _, err = run_cli(capsys, "study", "paper-case-2", *SEARCH_SIZES, "--restarts", "2",
                            "--methods", "A", "--json", str(tmp_path / "s.json"), "--csv",
-                           str(tmp_path / "s.csv"))
+                           str(tmp_path / "s.csv"), "--plot", str(tmp_path / "s.png"))
     assert code == 130 and err == "jaxarm: interrupted\n"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.json"]  # written whole, and no more
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.csv", "s.json"]  # whole, no more
     json.loads((tmp_path / "s.json").read_text())
 
 

@@ -39,5 +39,7 @@ def test_open_space_is_all_free_and_bad_sizes_name_the_argument():
     assert share.fraction == 1.0 and share.start_escape(20)[0] == 1.0
     with pytest.raises(ValueError, match="n_paths must be"):
         jaxarm.feasible_fraction(jaxarm.load_scenario("open-space"), n_paths=0)
+    with pytest.raises(ValueError, match="n_paths must be <= 16777216, got 1000000000"):
+        jaxarm.feasible_fraction(jaxarm.load_scenario("open-space"), n_paths=10**9)
     with pytest.raises(ValueError, match="n_particles must be"):
         share.start_escape(0)
