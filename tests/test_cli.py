@@ -262,7 +262,7 @@ def test_cli_reports_malformed_and_colliding_scenarios(capsys, tmp_path):
                          "[goal]\njoints = [1, 0, 0]\n[[obstacles]]\ntype = 'circle'\n"
                          "center = [40, 0]\nradius = 3\n")
     code, _, err = run_cli(capsys, "solve", str(colliding))
-    assert code == 2 and "start posture" in err and "link 2 overlaps circles[0]" in err
+    assert code == 2 and "start posture" in err and "link 2 overlaps obstacles[0]" in err
 
 
 def test_cli_help_on_every_subcommand(capsys):

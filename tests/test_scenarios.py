@@ -79,6 +79,10 @@ def test_load_from_path_with_pose_and_overrides(tmp_path):
         (MINIMAL + "[search]\ncapacities = [1000000000, 0, 0]",
          r"search.capacities\[0\] must be <= 4096, got 1000000000"),
         (MINIMAL + "[search]\ncapacities = 4", r"search.capacities must be 3 slot counts"),
+        ("[arm]\nlengths = [30.0, 30.0, 20.0]\n[start]\njoints = [1.5, 0.5, 0.5]\n[goal]\n"
+         "joints = [0, 1.5, 0]\n[[obstacles]]\ntype = 'circle'\ncenter = [100, 100]\nradius = 1\n"
+         "[[obstacles]]\ntype = 'box'\nmin = [25, -5]\nmax = [35, 5]",
+         r"goal posture .* collides: link 1 overlaps obstacles\[1\] by"),
         (MINIMAL.replace("[30.0]", "[1e300]"), r"arm.lengths\[0\] must be within \+-100000 cm"),
         (MINIMAL + "[[obstacles]]\ntype = 'circle'\ncenter = [0, 1e6]\nradius = 1",
          r"obstacles\[0\].center\[1\] must be within \+-100000 cm, got 1000000.0"),

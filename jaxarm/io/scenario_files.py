@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import importlib.resources
 import pathlib
+import re
 import tomllib
 
 import numpy as np
@@ -193,10 +194,15 @@ def _check_agreement(which: str, arm: Arm, joints, pose: dict) -> None:
             "give one of them")
 
 
-def _obstacles(entries) -> World:
+def _obstacles(entries) -> tuple[World, dict[str, str]]:
+    """The world, and each obstacle's ``World`` name (``"boxes[0]"``) -> its name in the file
+    (``"obstacles[3]"``)."""
     if not isinstance(entries, list):
         raise ScenarioError(f"obstacles must be an array of tables, got {entries!r}")
     circles, boxes, polygons = [], [], []
+    kinds = {"circle": ("circles", circles), "box": ("boxes", boxes),
+             "polygon": ("polygons", polygons)}
+    names = {}
     for index, entry in enumerate(entries):
         where = f"obstacles[{index}]"
         kind = entry.get("type") if isinstance(entry, dict) else None
@@ -217,7 +223,9 @@ def _obstacles(entries) -> World:
                 polygons.append(world_lib.check_polygon(where, entry["vertices"]))
         except (ValueError, TypeError) as error:
             raise ScenarioError(str(error)) from None
-    return World(circles=circles, boxes=boxes, polygons=polygons)
+        field, added = kinds[kind]
+        names[f"{field}[{len(added) - 1}]"] = where
+    return World(circles=circles, boxes=boxes, polygons=polygons), names
 
 
 def _problem(data: dict, default_name: str) -> Problem:
@@ -235,14 +243,18 @@ def _problem(data: dict, default_name: str) -> Problem:
     _unknown(search, set(_SEARCH_FIELDS), "in [search]: ")
     fields = {field: search[key] for key, field in _SEARCH_FIELDS.items() if key in search}
     start, goal = _posture(data, "start", arm), _posture(data, "goal", arm)
-    world = _obstacles(data.get("obstacles", []))
+    world, obstacle_names = _obstacles(data.get("obstacles", []))
     try:
         return Problem(arm=arm, start=start, goal=goal, world=world,
                        name=str(data.get("name", default_name)),
                        description=str(data.get("description", "")),
                        joint_limits=arm_table.get("joint_limits"), **fields)
-    except ValueError as error:  # named as the file names it: search.samples, not n_samples
-        raise ScenarioError(renamed(str(error), _FIELD_KEYS)) from None
+    except ValueError as error:  # named as the file names it: search.samples, not n_samples,
+        message = renamed(str(error), _FIELD_KEYS)  # and obstacles[3], not boxes[0]
+        if obstacle_names:
+            message = re.sub(r"\b(circles|boxes|polygons)\[\d+\]",
+                             lambda m: obstacle_names.get(m.group(), m.group()), message)
+        raise ScenarioError(message) from None
 
 
 def problem_from_table(table: dict) -> Problem:
