@@ -465,7 +465,9 @@ def _reproduce(args) -> None:
     from jaxarm.paper.report import reproduce_paper
 
     output_folder("--out", args.out)
-    suite = [name.strip() for name in args.suite.split(",")] if args.suite else None
+    suite = None if args.suite is None else [name.strip() for name in args.suite.split(",")]
+    if suite is not None and not all(suite):
+        raise ValueError(f"--suite must be comma-separated scenario names, got {args.suite!r}")
     reproduce_paper(args.out, quick=args.quick, n_restarts=args.restarts, suite=suite,
                     suite_restarts=args.suite_restarts, degrees=args.degrees, workers=args.workers)
 

@@ -263,8 +263,9 @@ def min_duration(problem: Problem, x, *, max_velocity=None, max_acceleration=Non
 
     Raises:
       ValueError: when no limit is given, a limit is not a positive finite number (or has the
-        wrong length), a torque limit is at or below the static gravity load on the path, or
-        the path collides (unless ``allow_colliding``).
+        wrong length), a torque limit is at or below the static gravity load on the path, the
+        limits allow less than ``MIN_DURATION``, or the path collides (unless
+        ``allow_colliding``).
 
     Examples:
       >>> problem = jaxarm.load_scenario("paper-case-2")
@@ -292,6 +293,12 @@ def min_duration(problem: Problem, x, *, max_velocity=None, max_acceleration=Non
         _check_free(problem, trajectory.x)
     if limits["max_torque"] is not None:
         duration = max(duration, _torque_duration(trajectory, limits["max_torque"]))
+    if 0 < duration < MIN_DURATION:
+        given = ", ".join(f"{name} {value.tolist()}" for name, value in limits.items()
+                          if value is not None)
+        raise ValueError(f"the limits ({given}) allow the path a duration of {duration:.3g} s, "
+                         f"below the shortest a Trajectory takes ({MIN_DURATION:g} s): limits "
+                         "this loose do not bind")
     return duration * (1.0 + SAFETY)
 
 

@@ -168,3 +168,6 @@ def test_trajectory_sizes_that_would_not_compute_are_refused(problem):
         traj.table(rate=1e6)
     with pytest.raises(ValueError, match=r"gives inf rows"):
         traj.table(rate=1e305)
+    with pytest.raises(ValueError, match=r"the limits \(max_velocity \[1e\+300, 1e\+300, "
+                                         r"1e\+300\]\) allow the path a duration of .* below"):
+        jaxarm.min_duration(problem, PAPER_X, max_velocity=1e300)

@@ -123,6 +123,9 @@ def load_scenario(name_or_path: str | pathlib.Path, **overrides) -> Problem:
 
 
 def _read(name_or_path) -> tuple[str, str]:
+    if not str(name_or_path).strip():
+        raise ScenarioError(f"scenario must be a shipped name or a path to a .toml file, got "
+                            f"{str(name_or_path)!r}; shipped scenarios: {', '.join(available())}")
     candidate = pathlib.Path(name_or_path)
     if candidate.suffix == ".toml" or candidate.exists():
         try:
