@@ -16,10 +16,11 @@ COLLISION_MODES = ("sampled", "certified")
 MIN_DEGREE = 6  # the paper's: a0..a5 meet the six rest-to-rest end conditions
 # The highest path degree. Measured by ``benchmarks/degree_limit.py`` on paper-case-2: float32
 # angles and travelling distances stay within 4e-7 (relative) of float64 up to degree 200, and
-# Simpson's rule at 101 samples within 1e-6 of a dense one up to degree 48, so accuracy does not
-# bind. The certified check, the default, does: compiling its search took 0.5 GB and 9 s at
-# degree 6, 3.1 GB and 54 s at 24, 5.1 GB at 28 and 8.0 GB (128 s) at 32, its Taylor
-# expansions having (degree + 1)^2 terms per joint; 24 keeps it within a laptop's memory.
+# on paths straying up to 1 rad Simpson's rule at 101 samples stays within 1e-6 of a dense one
+# up to degree 48, so accuracy does not bind. The certified check, the default, does: compiling
+# its search took 0.5 GB and 9 s at degree 6, 3.1 GB and 54 s at 24, 5.1 GB at 28 and 8.0 GB
+# (128 s) at 32, its Taylor expansions having (degree + 1)^2 terms per joint; 24 keeps it
+# within a laptop's memory.
 MAX_DEGREE = 24
 # ``trajectory.min_duration``'s limits (keywords ``max_<name>``, CLI ``--max-<name>``), with units
 LIMIT_UNITS = {"velocity": "rad/s", "acceleration": "rad/s^2", "jerk": "rad/s^3",
