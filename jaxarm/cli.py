@@ -1,7 +1,10 @@
 """The ``jaxarm`` command: scenarios, solve, study, reproduce-paper.
 
-Errors (missing file, malformed TOML, bad values, unreachable pose, colliding start) print one
-line to stderr and exit with status 2; ``--debug`` shows the traceback instead.
+Errors (unknown or misspelt flags, missing file, malformed TOML, bad values, unreachable pose,
+colliding start, an output that cannot be written) print one line to stderr and exit with
+status 2, before any search where the input decides them; ``--debug`` shows the traceback
+instead. Ctrl-C prints one line and exits with 130; output files are written whole or not at
+all.
 """
 
 from __future__ import annotations
