@@ -4,7 +4,8 @@ Three stages, all batched over paths.
 
 0. **Samples** (a fold along the samples, ``path.run_fold``): the nearest obstacle at every
    sample. A sample where a link penetrates an obstacle is a *witness*: the path collides, and
-   nothing more is done for it.
+   nothing more is done for it. A search asks for proofs only of the paths that could change
+   it (``check``'s ``prove``, from ``pso.Swarm.bar``); the others stop here too.
 
 1. **Windows**, for the paths without a witness only (compacted, ``WINDOW_CHUNK`` at a time;
    most random paths have a witness). Around every sample r_s lies the
@@ -94,7 +95,7 @@ from jaxarm.model.problem import ProblemArrays, ProblemSpec
 MAX_LEVELS = 22  # halvings of a sample window; offsets stay exact integers in float32
 LANES = 1024  # paths bisected at once on an accelerator ...
 FEW_LANES, FEW_PATHS = 64, 2048  # ... or FEW_LANES at a time when at most FEW_PATHS need it
-WINDOW_CHUNK = 512  # paths per call of the window pass
+WINDOW_CHUNK = 1024  # paths per call of the window pass (see _compacted_window_pass)
 # Pieces per path: the count shares an int32 with three flags, and a path can test a few more
 # than its budget (the first piece of each failing window left, and the pending siblings).
 MAX_BUDGET = 2**27
@@ -134,27 +135,27 @@ class _WindowPass(NamedTuple):
     """Carry of the window stage along the samples."""
 
     pending: jax.Array  # shape=(B,), the previous sample's window shortfall, not yet recorded
-    pending_nearest: jax.Array  # shape=(B,), its nearest clearance bound
     worst_passed: jax.Array  # shape=(B,), largest shortfall of a certified window (<= 0)
-    nearest: jax.Array  # shape=(B,), smallest clearance bound at a sample (< 0: witness)
-    closest: jax.Array  # shape=(B,), int32: the sample where it was found
     failing: jax.Array  # shape=(B, n_words), uint32: bit s % 32 of word s // 32 = window s
 
 
 def _no_windows(batch: tuple, dtype, n_samples: int) -> _WindowPass:
-    """The window pass before any sample: nothing failing, nothing near."""
+    """The window pass before any sample: nothing failing."""
     return _WindowPass(
         pending=jnp.full(batch, -jnp.inf, dtype),
-        pending_nearest=jnp.full(batch, jnp.inf, dtype),
         worst_passed=jnp.full(batch, -jnp.inf, dtype),
-        nearest=jnp.full(batch, jnp.inf, dtype),
-        closest=jnp.zeros(batch, jnp.int32),
         failing=jnp.zeros(batch + (-(-n_samples // 32),), jnp.uint32),
     )
 
 
 def _window_pass(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
-    """Stage 1 as a fold over the samples; ``finish`` returns the last ``_WindowPass``."""
+    """Stage 1 as a fold over the samples; ``finish`` returns the last ``_WindowPass``.
+
+    The shortfalls alone: the nearest clearance at the samples comes from stage 0. With both,
+    every link's distance had two consumers, and XLA's CPU backend materialised them (the
+    pass ran about 4 times slower: ``benchmarks/RESULTS.md``, *Decisions and negative
+    results*, "The window pass computes the shortfall alone").
+    """
     lengths, world, start, goal, x = motion
     step = 1.0 / (n_samples - 1)
     tails = jnp.asarray(collision_lib.tail_weights(degree, np.linspace(0.0, 1.0, n_samples),
@@ -166,8 +167,6 @@ def _window_pass(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
         return carry._replace(
             worst_passed=jnp.maximum(carry.worst_passed,
                                      jnp.where(failing, -jnp.inf, carry.pending)),
-            nearest=jnp.minimum(carry.nearest, carry.pending_nearest),
-            closest=jnp.where(carry.pending_nearest < carry.nearest, index, carry.closest),
             failing=carry.failing | jnp.where(
                 index >> 5 == jnp.arange(carry.failing.shape[-1]), bit[..., None], jnp.uint32(0)),
         )
@@ -178,9 +177,9 @@ def _window_pass(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
         # Recorded one step late: the fusion computing a sample's values then feeds nothing
         # else in the same step, and XLA does not repeat the geometry per consumer.
         carry = record(carry, sample.index - 1)
-        shortfall, nearest = collision_lib.window_shortfall(lengths, world, theta, speed,
-                                                            step / 2, margin)
-        return carry._replace(pending=shortfall, pending_nearest=nearest)
+        shortfall, _ = collision_lib.window_shortfall(lengths, world, theta, speed, step / 2,
+                                                      margin)
+        return carry._replace(pending=shortfall)
 
     return path.SampleFold(init=_no_windows(x.shape[:-1], x.dtype, n_samples), step=add_sample,
                            finish=lambda carry: record(carry, jnp.int32(n_samples - 1)),
@@ -194,27 +193,33 @@ def _wide_lanes() -> int:
 
 def _nearest_fold(lengths, world, x) -> path.SampleFold:
     """Stage 0 as a fold: the smallest clearance bound of any link at any sample (cm; < 0:
-    a penetration, exact), shape (B,).
+    a penetration, exact) and the first sample where it was found, each of shape (B,).
 
-    One value per sample and nothing else: the window pass's two values per sample share
-    every link's distances, and XLA's CPU backend then materialises each link-obstacle
-    distance on its own (several times slower: ``benchmarks/RESULTS.md``, *Fitness-kernel
-    throughput*), so the window pass runs only on the paths this one finds no witness on.
+    One value per sample: the window pass's shortfall and this distance share every link's
+    distances, and XLA's CPU backend then materialises each link-obstacle distance on its own
+    (several times slower: ``benchmarks/RESULTS.md``, *Fitness-kernel throughput*), so the
+    window pass runs apart, and only on the paths this one finds no witness on.
     """
+    def add_sample(carry, sample):
+        nearest, closest = carry
+        here = functools.reduce(jnp.minimum, collision_lib.posture_clearance_bound(
+            lengths, world, sample.derivatives[0]))
+        nearer = jnp.minimum(nearest, here)  # ``here`` read once, for the same reason
+        return nearer, jnp.where(nearer < nearest, sample.index, closest)
+
     return path.SampleFold(
-        init=jnp.full(x.shape[:-1], jnp.inf, x.dtype),
-        step=lambda nearest, sample: functools.reduce(
-            jnp.minimum, collision_lib.posture_clearance_bound(lengths, world,
-                                                               sample.derivatives[0]),
-            nearest),
-        finish=lambda nearest: nearest,
-        max_order=0,
-    )
+        init=(jnp.full(x.shape[:-1], jnp.inf, x.dtype), jnp.zeros(x.shape[:-1], jnp.int32)),
+        step=add_sample, finish=lambda carry: carry, max_order=0)
 
 
 def _compacted_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples,
                            margin) -> _WindowPass:
     """Stage 1 on the paths ``open_rows[:n_open]`` only, ``WINDOW_CHUNK`` paths at a time.
+
+    Each chunk is a scan over the samples, whose steps cost about the same for 512 paths as
+    for 1024 on polygon scenes: 1024 made a polygon-field search faster and the others no
+    slower (``benchmarks/RESULTS.md``, *Decisions and negative results*, "The window pass
+    computes the shortfall alone").
 
     Args:
       motion: all paths, x of shape (B, n_free).
@@ -514,13 +519,16 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
     return out
 
 
-def check(spec: ProblemSpec, arrays: ProblemArrays, x) -> CertifiedCheck:
+def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None) -> CertifiedCheck:
     """The certified check of paths (module docstring).
 
     Args:
       spec: the problem's static part (degree, n_samples, certify_budget are read).
       arrays: the problem's data (certify_tol and margin, cm, may be traced).
       x: free parameters, shape (B, n_free).
+      prove: optional, shape (B,), bool: the paths to prove. The others get stage 0 only:
+        colliding if a sample finds a witness, else neither free nor colliding, with violation
+        inf (a search skips the paths that could not change it: ``pso.Swarm.bar``).
 
     Returns:
       ``CertifiedCheck`` of arrays of shape (B,).
@@ -532,19 +540,19 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x) -> CertifiedCheck:
     step = 1.0 / (n_samples - 1)
     tol = jnp.asarray(arrays.certify_tol, dtype)
     margin = jnp.asarray(arrays.margin, dtype)
-    nearest = path.run_fold(_nearest_fold(lengths, world, x), start, goal, x, degree,
-                            n_samples)
+    nearest, closest = path.run_fold(_nearest_fold(lengths, world, x), start, goal, x, degree,
+                                     n_samples)
     sample_witness = ~(nearest >= 0)
-    open_rows = jnp.argsort(sample_witness, stable=True).astype(jnp.int32)
-    windows = _compacted_window_pass(motion, open_rows, (~sample_witness).sum(dtype=jnp.int32),
-                                     degree, n_samples, margin)
-    windows = windows._replace(nearest=jnp.where(sample_witness, nearest, windows.nearest))
-    needs_work = ~sample_witness & (windows.failing != 0).any(axis=1)
+    unproved = ~sample_witness & (False if prove is None else ~prove)
+    open_ = ~sample_witness & ~unproved
+    windows = _compacted_window_pass(motion, jnp.argsort(~open_, stable=True).astype(jnp.int32),
+                                     open_.sum(dtype=jnp.int32), degree, n_samples, margin)
+    needs_work = open_ & (windows.failing != 0).any(axis=1)
 
     work_rows = jnp.argsort(~needs_work, stable=True).astype(jnp.int32)
     n_work = needs_work.sum(dtype=jnp.int32)
     bisect = functools.partial(
-        _bisect, motion, _Work(windows.failing, windows.closest, work_rows, n_work),
+        _bisect, motion, _Work(windows.failing, closest, work_rows, n_work),
         jnp.asarray(_derivative_tables(degree, n_samples), dtype), step, tol, margin, budget)
     few, many = min(FEW_LANES, x.shape[0]), min(_wide_lanes(), x.shape[0])
     if few == many:
@@ -555,12 +563,12 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x) -> CertifiedCheck:
     exhausted = needs_work & out.exhausted
     decided = needs_work & ~exhausted
     colliding = sample_witness | (decided & out.witness)
-    free = ~sample_witness & ~(needs_work & (out.witness | out.undecided | out.exhausted))
+    free = open_ & ~(needs_work & (out.witness | out.undecided | out.exhausted))
     open_pieces = out.violation + jnp.where(exhausted, tol * step, 0.0)
-    violation = jnp.where(sample_witness, margin - windows.nearest,
-                          jnp.where(needs_work, open_pieces, 0.0))
+    violation = jnp.where(sample_witness, margin - nearest,
+                          jnp.where(unproved, jnp.inf, jnp.where(needs_work, open_pieces, 0.0)))
     proved = jnp.minimum(-windows.worst_passed, jnp.where(needs_work, out.proved, jnp.inf))
-    seen = jnp.where(decided, jnp.minimum(windows.nearest, out.nearest), windows.nearest)
+    seen = jnp.where(decided, jnp.minimum(nearest, out.nearest), nearest)
     clearance = jnp.where(free, margin + proved, seen)
     return CertifiedCheck(violation=violation, free=free, colliding=colliding,
                           clearance=clearance, exhausted=exhausted,

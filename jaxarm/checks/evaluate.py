@@ -34,7 +34,7 @@ class Evaluation(NamedTuple):
     distance: jax.Array  # shape=(...,), joint angle travelling distance (eq. 5)
 
 
-def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x) -> Evaluation:
+def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x, bar=None) -> Evaluation:
     """Fitness, violation and travelling distance of paths.
 
     Pure and traceable: ``spec`` must be static under jit, ``arrays`` and ``x`` may be traced.
@@ -46,18 +46,23 @@ def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x) -> Evaluation:
       spec: ``problem.spec``.
       arrays: ``problem.arrays``.
       x: free parameters, shape (..., n_free).
+      bar: optional, shape (...,): the certified check proves only the paths whose objective
+        (1 / distance) exceeds it; the others' violation is inf unless a sample found them
+        colliding (``pso.Swarm.bar``: they could not change the swarm). Ignored when sampled.
 
     Returns:
       ``Evaluation`` of arrays of shape (...,).
     """
     rows = x.reshape((math.prod(x.shape[:-1]), x.shape[-1]))  # -1 fails on empty batches
-    evaluation, _, _ = _check_rows(spec, arrays, rows)
+    bar = None if bar is None else jnp.reshape(bar, rows.shape[:1])
+    evaluation, _, _ = _check_rows(spec, arrays, rows, bar)
     return jax.tree.map(lambda a: a.reshape(x.shape[:-1]), evaluation)
 
 
-def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows):
-    """``evaluate`` of paths ``rows``, shape (B, n_free), and the checks it ran: (Evaluation,
-    the certified check or None when sampled, the joint-limit check or None without limits)."""
+def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows, bar=None):
+    """``evaluate`` of paths ``rows``, shape (B, n_free) (``bar``: None or shape (B,)), and the
+    checks it ran: (Evaluation, the certified check or None when sampled, the joint-limit check
+    or None without limits)."""
     # Separate loops for distance and collision: one scan carrying both was no faster, and
     # slower for the certified check at small batches (XLA splits a bigger loop body into
     # more fusions).
@@ -70,7 +75,8 @@ def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows):
                                        arrays.margin, exact=spec.with_margin),
             arrays.start, arrays.goal, rows, spec.degree, spec.n_samples)
     else:
-        check = certify_rows(spec, arrays, rows)
+        prove = None if bar is None else ~(1.0 / distance <= bar)  # NaN: proved
+        check = certify_rows(spec, arrays, rows, prove)
         violation = check.violation
     if spec.with_limits:  # joint limits: their excess (rad) adds to the violation
         limits = limit_rows(spec, arrays, rows)
@@ -79,12 +85,14 @@ def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows):
     return Evaluation(fitness=fitness, violation=violation, distance=distance), check, limits
 
 
-def certify_rows(spec: ProblemSpec, arrays: ProblemArrays, rows) -> certified_lib.CertifiedCheck:
-    """The certified check (``jaxarm.checks.certified``) of paths ``rows``, shape (B, n_free)."""
+def certify_rows(spec: ProblemSpec, arrays: ProblemArrays, rows,
+                 prove=None) -> certified_lib.CertifiedCheck:
+    """The certified check (``jaxarm.checks.certified``) of paths ``rows``, shape (B, n_free)
+    (``prove``: None, or which rows to prove, shape (B,))."""
     if rows.shape[0] == 0:  # the bisection's lanes need a path: check one, keep none
         one = certify_rows(spec, arrays, jnp.zeros((1, rows.shape[1]), rows.dtype))
         return jax.tree.map(lambda a: a[:0], one)
-    return certified_lib.check(spec, arrays, rows)
+    return certified_lib.check(spec, arrays, rows, prove)
 
 
 def limit_rows(spec: ProblemSpec, arrays: ProblemArrays, rows) -> limits_lib.LimitCheck:
@@ -105,23 +113,30 @@ def vmapped_evaluate(spec: ProblemSpec):
     outer axis to every array in it. Not reverse-differentiable (``jax.custom_batching``).
     """
     @jax.custom_batching.custom_vmap
-    def evaluate_spec(arrays, x):
-        return evaluate(spec, arrays, x)
+    def evaluate_spec(arrays, x, bar):
+        return evaluate(spec, arrays, x, bar)
 
     @evaluate_spec.def_vmap
-    def fold_mapped_axis(axis_size, in_batched, arrays, x):
-        arrays_batched, x_batched = in_batched
+    def fold_mapped_axis(axis_size, in_batched, arrays, x, bar):
+        arrays_batched, x_batched, bar_batched = in_batched
         if any(jax.tree.leaves(arrays_batched)):  # several problems: an ordinary vmap
             in_axes = (jax.tree.map(lambda b: 0 if b else None, arrays_batched),
-                       0 if x_batched else None)
-            result = jax.vmap(functools.partial(evaluate, spec), in_axes=in_axes)(arrays, x)
+                       0 if x_batched else None, 0 if bar_batched else None)
+            result = jax.vmap(functools.partial(evaluate, spec), in_axes=in_axes)(arrays, x, bar)
         else:
             if not x_batched:
                 x = jnp.broadcast_to(x, (axis_size,) + x.shape)
-            result = evaluate_spec(arrays, x)
+            if not bar_batched:
+                bar = jnp.broadcast_to(bar, (axis_size,) + bar.shape)
+            result = evaluate_spec(arrays, x, bar)
         return result, Evaluation(True, True, True)
 
-    return evaluate_spec
+    def evaluate_with_bar(arrays, x, bar=None):
+        if bar is None:  # every path proved
+            bar = jnp.full(x.shape[:-1], -jnp.inf, x.dtype)
+        return evaluate_spec(arrays, x, bar)
+
+    return evaluate_with_bar
 
 
 @functools.partial(jit, static_argnums=0, storable=True)

@@ -244,7 +244,8 @@ class StepInfo(NamedTuple):
     global_fitness: jax.Array  # shape=(), its fitness
     global_violation: jax.Array  # shape=(), its reported violation (0 iff feasible)
     global_score: jax.Array  # shape=(), its score
-    n_feasible: jax.Array  # shape=(), int32: feasible particles at this iteration
+    n_feasible: jax.Array  # shape=(), int32: particles measured feasible at this iteration
+    #   (a path left unmeasured because it could not change the state, ``Swarm.bar``, is not)
 
 
 MeasureFn = Callable[[jax.Array], Measured]
@@ -258,7 +259,13 @@ class Swarm(NamedTuple):
       ``iteration`` (0: the initial paths; the loop's counter, the same for every restart, so
       a branch on it runs one side only under ``vmap``);
     - ``ask(key, state) -> (state, x)``: the next paths;
-    - ``measure``: paths (n, n_dims) -> ``Measured``.
+    - ``measure``: paths (n, n_dims) -> ``Measured``;
+    - ``bar`` (optional): ``bar(state)``, shape (n_particles,): the objective a particle's next
+      path must exceed to change the state. A restart loop given a measurement that accepts it
+      (``restarts.run_restarts_of``) may leave the other paths unproved: the certified check's
+      bisection is most of a certified search, and most late paths do not beat their
+      particle's best. None: every path may change the state (evosax's strategies rank them
+      all).
 
     ``restarts.run_restarts_of`` runs any optimiser given this way and calls ``measure`` at one
     place, so a compiled search holds one copy of the problem's check: the certified check
@@ -272,6 +279,7 @@ class Swarm(NamedTuple):
     tell: Callable
     ask: Callable
     measure: MeasureFn
+    bar: Callable | None = None
 
     def init(self, key) -> tuple:
         """Iteration 0, measured: ``(state, info)``."""
@@ -399,7 +407,16 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
         )
         return new_state, _info(new_state, feasible)
 
-    return Swarm(start=start, tell=tell, ask=ask, measure=measure_fn)
+    def bar(state: SwarmState) -> jax.Array:
+        # A path changes the state only by beating its particle's personal best. Under every
+        # rule a path scores at most its objective, and a feasible one scores its objective
+        # (its fitness under the death penalty, the same number), so against a feasible
+        # personal best a path needs a higher objective. Iteration 0 replaces every best.
+        feasible = (state.best.ranked_violation == 0) & (state.iteration > 0)
+        return jnp.where(feasible, jnp.minimum(state.best.objective, state.best.fitness),
+                         -jnp.inf)
+
+    return Swarm(start=start, tell=tell, ask=ask, measure=measure_fn, bar=bar)
 
 
 def on_first_iteration(iteration, first: Callable, later: Callable):

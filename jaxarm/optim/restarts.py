@@ -60,7 +60,7 @@ def run_restart(key, swarm: pso.Swarm, n_iters: int) -> RestartOutcome:
     return jax.tree.map(lambda a: a[0], run_restarts_of(key[None], swarm, n_iters))
 
 
-def run_restarts_of(keys, swarm: pso.Swarm, n_iters: int) -> RestartOutcome:
+def run_restarts_of(keys, swarm: pso.Swarm, n_iters: int, measure_above=None) -> RestartOutcome:
     """Restarts, one per key: iteration 0 then ``n_iters`` updates, tracking escape and the
     best fitness.
 
@@ -75,13 +75,23 @@ def run_restarts_of(keys, swarm: pso.Swarm, n_iters: int) -> RestartOutcome:
         ``fold_in(key, t)``.
       swarm: the optimiser (its functions see one restart).
       n_iters: updates (static).
+      measure_above: optionally ``(x, bar) -> Measured``, called in place of ``swarm.measure``
+        with ``swarm.bar(state)`` (when the swarm has one): it must measure every path whose
+        objective exceeds its particle's bar as ``swarm.measure`` does, and may leave the
+        others unproved (violation inf), which changes nothing the loop returns.
 
     Returns:
       ``RestartOutcome``: best_x (n_restarts, n_free), its fitness and violation as the swarm
       measured them (n_restarts,), escape_iter (n_restarts,), escape_x (n_restarts, n_free),
       history (n_restarts, n_iters + 1).
     """
-    start, ask, measure = jax.vmap(swarm.start), jax.vmap(swarm.ask), jax.vmap(swarm.measure)
+    start, ask = jax.vmap(swarm.start), jax.vmap(swarm.ask)
+    if measure_above is None or swarm.bar is None:
+        measure_all = jax.vmap(swarm.measure)
+        measure = lambda x, state: measure_all(x)  # noqa: E731
+    else:
+        bar, measure_bar = jax.vmap(swarm.bar), jax.vmap(measure_above)
+        measure = lambda x, state: measure_bar(x, bar(state))  # noqa: E731
     tell = jax.vmap(swarm.tell, in_axes=(0, 0, 0, None))
     keys_at = jax.vmap(jax.random.fold_in, in_axes=(0, None))
     state, x = start(keys_at(keys, 0))
@@ -93,7 +103,7 @@ def run_restarts_of(keys, swarm: pso.Swarm, n_iters: int) -> RestartOutcome:
 
     def body(carry, iteration):
         state, x, _, escape_iter, escape_x = carry
-        state, info = tell(state, x, measure(x), iteration)
+        state, info = tell(state, x, measure(x, state), iteration)
         escaped_now = (escape_iter < 0) & (info.n_feasible > 0)
         escape_iter = jnp.where(escaped_now, iteration, escape_iter)
         escape_x = jnp.where(escaped_now[:, None], info.global_position, escape_x)
@@ -141,8 +151,8 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
     low, high, seed, restart_ids, init_particles, n_given, constraint = data
     evaluate = vmapped_evaluate(spec)
 
-    def measure(x):
-        evaluation = evaluate(arrays, x)
+    def measure(x, bar=None):
+        evaluation = evaluate(arrays, x, bar)
         return constraints.path_measures(evaluation.fitness, evaluation.violation,
                                          evaluation.distance)
 
@@ -155,7 +165,7 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
                           constraint=constraint)
 
     keys = jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.key(seed), restart_ids)
-    return run_restarts_of(keys, swarm, n_iters)
+    return run_restarts_of(keys, swarm, n_iters, measure_above=measure)
 
 
 compiled_search = jit(
