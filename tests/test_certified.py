@@ -154,6 +154,50 @@ def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch):
                                       err_msg=name)
 
 
+def test_paths_not_to_prove_stop_at_the_samples(rng):
+    """``check(..., prove)``: the paths to prove get the verdict they get without the mask;
+    the others only stage 0's: colliding where a sample is, else neither free nor colliding,
+    with violation inf (a search never keeps them: ``pso.Swarm.bar``)."""
+    problem = thin_wall_problem(rng)
+    x = rng.uniform(-10, 10, (200, problem.n_free)).astype(np.float32)
+    prove = rng.uniform(size=200) < 0.5
+    check = jit(lambda arrays, x, prove: certified.check(problem.spec, arrays, x, prove))
+    some = check(problem.arrays, x, prove)
+    every = check(problem.arrays, x, np.ones(200, bool))
+    at_a_sample = np.asarray(every.colliding) & (np.asarray(every.pieces) == 0)
+    kept = prove | at_a_sample
+    for name in certified.CertifiedCheck._fields:
+        np.testing.assert_array_equal(np.asarray(getattr(some, name))[kept],
+                                      np.asarray(getattr(every, name))[kept], err_msg=name)
+    skipped = ~kept
+    assert np.sum(skipped & np.asarray(every.free)) > 5  # some would have been proved free
+    assert np.all(np.isinf(np.asarray(some.violation)[skipped]))
+    assert not np.any(np.asarray(some.free)[skipped] | np.asarray(some.colliding)[skipped])
+    assert np.all(np.asarray(some.pieces)[skipped] == 0)
+
+
+def test_paths_whose_freedom_alone_matters_stop_at_their_first_open_piece(rng):
+    """``check(..., free_only=...)``: the same free paths, with the same certificates; a path
+    that is not free is still not free, with a positive violation, after no more pieces.
+    Paths around case 2's optimum, half of them colliding, with a tolerance of 1 cm so that
+    some end undecided."""
+    problem = jaxarm.load_scenario("paper-case-2", certify_tol=1.0)
+    optimum = np.array([66.7388, -28.1028, -9.8855], np.float32)
+    x = (optimum + rng.normal(0.0, 2.0, (200, 3))).astype(np.float32)
+    check = jit(lambda arrays, x, free_only: certified.check(
+        problem.spec, arrays, x, np.ones(200, bool), free_only))
+    every = check(problem.arrays, x, np.zeros(200, bool))
+    early = check(problem.arrays, x, np.ones(200, bool))
+    free = np.asarray(every.free)
+    np.testing.assert_array_equal(np.asarray(early.free), free)
+    for name in certified.CertifiedCheck._fields:
+        np.testing.assert_array_equal(np.asarray(getattr(early, name))[free],
+                                      np.asarray(getattr(every, name))[free], err_msg=name)
+    assert np.all(np.asarray(early.violation)[~free] > 0)
+    assert np.all(np.asarray(early.pieces) <= np.asarray(every.pieces))
+    assert np.sum(np.asarray(early.pieces) < np.asarray(every.pieces)) >= 2
+
+
 def test_margin_keeps_the_arm_away(case2):
     x = a6_array(published.CASE_2_TABLE_3 + published.CASE_2_TABLE_4[:1])
     dense = dense_clearance(case2, x)

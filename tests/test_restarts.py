@@ -8,6 +8,7 @@ import pytest
 from sizes import SMALL
 
 import jaxarm
+from jaxarm.checks.evaluate import vmapped_evaluate
 from jaxarm.optim import constraints, pso, restarts
 from jaxarm.optim.constraints import Measured
 from jaxarm.optim.restarts import compiled_search
@@ -50,6 +51,44 @@ def test_jit_equals_no_jit_on_one_restart(case2):
         eager = restarts.search_restarts(*args, **sizes)
     for a, b in zip(jitted, eager):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-4, atol=1e-4)
+
+
+def test_paths_left_unproved_change_no_update(case2):
+    """A certified search proves only the paths whose objective beats their particle's bar
+    (``pso.Swarm.bar``). Stepped by hand under every rule, each update with those paths left
+    unproved equals the update with every path proved, bit for bit, and paths were left."""
+    problem = case2.replace(collision="certified")
+    evaluate = vmapped_evaluate(problem.spec)
+
+    def measure(x, bar=None):
+        evaluation = evaluate(problem.arrays, x, bar)
+        return constraints.path_measures(evaluation.fitness, evaluation.violation,
+                                         evaluation.distance)
+
+    measure_every = jax.jit(jax.vmap(lambda x: measure(x)))
+    measure_some = jax.jit(jax.vmap(measure))
+    low, high = (jnp.asarray(b, jnp.float32) for b in problem.bounds())
+    config, n_iters = pso.PRESETS["A"], SMALL["n_iters"]
+    keys = jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.key(4), jnp.arange(8))
+    keys_at = jax.vmap(jax.random.fold_in, in_axes=(0, None))
+    left = 0
+    for constraint in constraints.CONSTRAINTS:
+        swarm = pso.swarm(config.params(), config.rules(), measure, low, high,
+                          n_particles=SMALL["n_particles"], n_iters=n_iters,
+                          constraint=constraints.constraint_index(constraint))
+        tell = jax.jit(jax.vmap(swarm.tell, in_axes=(0, 0, 0, None)))
+        state, x = jax.vmap(swarm.start)(keys_at(keys, 0))
+        for iteration in range(n_iters + 1):
+            some = measure_some(x, jax.vmap(swarm.bar)(state))
+            left += int(np.sum(np.isinf(np.asarray(some.violation))))
+            expected, _ = tell(state, x, measure_every(x), iteration)
+            state, _ = tell(state, x, some, iteration)
+            for a, b in zip(jax.tree.leaves(expected), jax.tree.leaves(state)):
+                if jnp.issubdtype(a.dtype, jax.dtypes.prng_key):
+                    a, b = jax.random.key_data(a), jax.random.key_data(b)
+                np.testing.assert_array_equal(np.asarray(a), np.asarray(b), err_msg=constraint)
+            state, x = jax.vmap(swarm.ask)(keys_at(keys, iteration + 1), state)
+    assert left > 0
 
 
 def test_a_second_problem_with_the_same_sizes_does_not_recompile(case2, case3):

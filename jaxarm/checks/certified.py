@@ -127,6 +127,7 @@ class _Work(NamedTuple):
 
     failing_words: jax.Array  # shape=(B, n_words), uint32: the failing windows
     first_window: jax.Array  # shape=(B,), int32: the window to bisect first when it fails
+    free_only: jax.Array  # shape=(B,), bool: stop at the first piece that is not free
     work_rows: jax.Array  # shape=(B,), int32: the rows to bisect first, then anything
     n_work: jax.Array  # shape=(), int32: how many rows need it
 
@@ -395,7 +396,7 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
       ``_Verdict`` of arrays of shape (B,) (meaningful on the work rows).
     """
     lengths, world, start, goal, x = motion
-    failing_words, first_window, work_rows, n_work = work
+    failing_words, first_window, free_only, work_rows, n_work = work
     n_rows, dtype = x.shape[0], x.dtype
     n_samples = tables.shape[0]
     # With one polygon slot the minimum over the slots is no reduction at all, and XLA then
@@ -485,7 +486,7 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
         remaining = jnp.where(window_done[:, None] & (piece.sample[:, None] >> 5 == word_index),
                               lanes.windows & ~done_bit[:, None], lanes.windows)
         next_window = _lowest_set_bit(remaining)
-        path_done = lanes.active & (witness | exhausted
+        path_done = lanes.active & (witness | exhausted | (undecided & free_only[lanes.row])
                                     | (~split & window_done & (next_window >= n_samples)))
         choose = lambda a, b, c: jnp.where(split, a, jnp.where(window_done, c, b))  # noqa: E731
         piece = jax.tree.map(choose, descend, climb,
@@ -519,7 +520,8 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
     return out
 
 
-def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None) -> CertifiedCheck:
+def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None,
+          free_only=None) -> CertifiedCheck:
     """The certified check of paths (module docstring).
 
     Args:
@@ -529,6 +531,9 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None) -> CertifiedC
       prove: optional, shape (B,), bool: the paths to prove. The others get stage 0 only:
         colliding if a sample finds a witness, else neither free nor colliding, with violation
         inf (a search skips the paths that could not change it: ``pso.Swarm.bar``).
+      free_only: optional, shape (B,), bool: paths whose bisection stops at the first piece
+        that is not free (a witness or undecided): only whether they are free matters, and
+        their violation is what was found by then.
 
     Returns:
       ``CertifiedCheck`` of arrays of shape (B,).
@@ -551,8 +556,9 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None) -> CertifiedC
 
     work_rows = jnp.argsort(~needs_work, stable=True).astype(jnp.int32)
     n_work = needs_work.sum(dtype=jnp.int32)
+    stop_early = jnp.zeros(x.shape[:1], bool) if free_only is None else free_only
     bisect = functools.partial(
-        _bisect, motion, _Work(windows.failing, closest, work_rows, n_work),
+        _bisect, motion, _Work(windows.failing, closest, stop_early, work_rows, n_work),
         jnp.asarray(_derivative_tables(degree, n_samples), dtype), step, tol, margin, budget)
     few, many = min(FEW_LANES, x.shape[0]), min(_wide_lanes(), x.shape[0])
     if few == many:

@@ -46,23 +46,26 @@ def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x, bar=None) -> Evaluatio
       spec: ``problem.spec``.
       arrays: ``problem.arrays``.
       x: free parameters, shape (..., n_free).
-      bar: optional, shape (...,): the certified check proves only the paths whose objective
-        (1 / distance) exceeds it; the others' violation is inf unless a sample found them
-        colliding (``pso.Swarm.bar``: they could not change the swarm). Ignored when sampled.
+      bar: optional ``(objective, free_only)`` (``pso.Bar``), each of shape (...,): the
+        certified check proves only the paths whose objective (1 / distance) exceeds
+        ``objective`` (the others' violation is inf unless a sample finds them colliding), and
+        stops at the first piece that is not free on a path where ``free_only`` (its violation
+        is then what was found so far). ``pso.Swarm.bar``: what could not change the swarm.
+        Ignored when sampled.
 
     Returns:
       ``Evaluation`` of arrays of shape (...,).
     """
     rows = x.reshape((math.prod(x.shape[:-1]), x.shape[-1]))  # -1 fails on empty batches
-    bar = None if bar is None else jnp.reshape(bar, rows.shape[:1])
+    bar = None if bar is None else [jnp.reshape(b, rows.shape[:1]) for b in bar]
     evaluation, _, _ = _check_rows(spec, arrays, rows, bar)
     return jax.tree.map(lambda a: a.reshape(x.shape[:-1]), evaluation)
 
 
 def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows, bar=None):
-    """``evaluate`` of paths ``rows``, shape (B, n_free) (``bar``: None or shape (B,)), and the
-    checks it ran: (Evaluation, the certified check or None when sampled, the joint-limit check
-    or None without limits)."""
+    """``evaluate`` of paths ``rows``, shape (B, n_free) (``bar``: None or two arrays of shape
+    (B,)), and the checks it ran: (Evaluation, the certified check or None when sampled, the
+    joint-limit check or None without limits)."""
     # Separate loops for distance and collision: one scan carrying both was no faster, and
     # slower for the certified check at small batches (XLA splits a bigger loop body into
     # more fusions).
@@ -75,8 +78,10 @@ def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows, bar=None):
                                        arrays.margin, exact=spec.with_margin),
             arrays.start, arrays.goal, rows, spec.degree, spec.n_samples)
     else:
-        prove = None if bar is None else ~(1.0 / distance <= bar)  # NaN: proved
-        check = certify_rows(spec, arrays, rows, prove)
+        prove = free_only = None
+        if bar is not None:
+            prove, free_only = ~(1.0 / distance <= bar[0]), bar[1]  # NaN: proved
+        check = certify_rows(spec, arrays, rows, prove, free_only)
         violation = check.violation
     if spec.with_limits:  # joint limits: their excess (rad) adds to the violation
         limits = limit_rows(spec, arrays, rows)
@@ -85,14 +90,14 @@ def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows, bar=None):
     return Evaluation(fitness=fitness, violation=violation, distance=distance), check, limits
 
 
-def certify_rows(spec: ProblemSpec, arrays: ProblemArrays, rows,
-                 prove=None) -> certified_lib.CertifiedCheck:
+def certify_rows(spec: ProblemSpec, arrays: ProblemArrays, rows, prove=None,
+                 free_only=None) -> certified_lib.CertifiedCheck:
     """The certified check (``jaxarm.checks.certified``) of paths ``rows``, shape (B, n_free)
-    (``prove``: None, or which rows to prove, shape (B,))."""
+    (``prove``, ``free_only``: None, or shape (B,): ``certified.check``)."""
     if rows.shape[0] == 0:  # the bisection's lanes need a path: check one, keep none
         one = certify_rows(spec, arrays, jnp.zeros((1, rows.shape[1]), rows.dtype))
         return jax.tree.map(lambda a: a[:0], one)
-    return certified_lib.check(spec, arrays, rows, prove)
+    return certified_lib.check(spec, arrays, rows, prove, free_only)
 
 
 def limit_rows(spec: ProblemSpec, arrays: ProblemArrays, rows) -> limits_lib.LimitCheck:
@@ -121,20 +126,20 @@ def vmapped_evaluate(spec: ProblemSpec):
         arrays_batched, x_batched, bar_batched = in_batched
         if any(jax.tree.leaves(arrays_batched)):  # several problems: an ordinary vmap
             in_axes = (jax.tree.map(lambda b: 0 if b else None, arrays_batched),
-                       0 if x_batched else None, 0 if bar_batched else None)
+                       0 if x_batched else None, tuple(0 if b else None for b in bar_batched))
             result = jax.vmap(functools.partial(evaluate, spec), in_axes=in_axes)(arrays, x, bar)
         else:
             if not x_batched:
                 x = jnp.broadcast_to(x, (axis_size,) + x.shape)
-            if not bar_batched:
-                bar = jnp.broadcast_to(bar, (axis_size,) + bar.shape)
+            bar = tuple(b if batched else jnp.broadcast_to(b, (axis_size,) + b.shape)
+                        for b, batched in zip(bar, bar_batched))
             result = evaluate_spec(arrays, x, bar)
         return result, Evaluation(True, True, True)
 
     def evaluate_with_bar(arrays, x, bar=None):
-        if bar is None:  # every path proved
-            bar = jnp.full(x.shape[:-1], -jnp.inf, x.dtype)
-        return evaluate_spec(arrays, x, bar)
+        if bar is None:  # every path proved, fully
+            bar = (jnp.full(x.shape[:-1], -jnp.inf, x.dtype), jnp.zeros(x.shape[:-1], bool))
+        return evaluate_spec(arrays, x, tuple(bar))
 
     return evaluate_with_bar
 

@@ -251,6 +251,15 @@ class StepInfo(NamedTuple):
 MeasureFn = Callable[[jax.Array], Measured]
 
 
+class Bar(NamedTuple):
+    """What a particle's next path must do to change the swarm's state (``Swarm.bar``), each
+    field of shape (n_particles,)."""
+
+    objective: jax.Array  # exceed this objective (a path that does not changes nothing)
+    free_only: jax.Array  # bool: only a free path can change it (a colliding one's violation
+    #   does not matter)
+
+
 class Swarm(NamedTuple):
     """An optimiser as pure ask-and-tell functions, and the measurement its paths get.
 
@@ -260,12 +269,12 @@ class Swarm(NamedTuple):
       a branch on it runs one side only under ``vmap``);
     - ``ask(key, state) -> (state, x)``: the next paths;
     - ``measure``: paths (n, n_dims) -> ``Measured``;
-    - ``bar`` (optional): ``bar(state)``, shape (n_particles,): the objective a particle's next
-      path must exceed to change the state. A restart loop given a measurement that accepts it
-      (``restarts.run_restarts_of``) may leave the other paths unproved: the certified check's
-      bisection is most of a certified search, and most late paths do not beat their
-      particle's best. None: every path may change the state (evosax's strategies rank them
-      all).
+    - ``bar`` (optional): ``bar(state) -> Bar``: per particle, the objective its next path
+      must exceed to change the state, and whether only a free path can. A restart loop given a
+      measurement that accepts it (``restarts.run_restarts_of``) may leave the other paths
+      unproved, and stop proving a path that can only matter if free once it is found not to
+      be: the certified check's proofs are most of a certified search. None: every path may
+      change the state (evosax's strategies rank them all).
 
     ``restarts.run_restarts_of`` runs any optimiser given this way and calls ``measure`` at one
     place, so a compiled search holds one copy of the problem's check: the certified check
@@ -407,14 +416,23 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
         )
         return new_state, _info(new_state, feasible)
 
-    def bar(state: SwarmState) -> jax.Array:
+    def bar(state: SwarmState) -> Bar:
         # A path changes the state only by beating its particle's personal best. Under every
         # rule a path scores at most its objective, and a feasible one scores its objective
         # (its fitness under the death penalty, the same number), so against a feasible
         # personal best a path needs a higher objective. Iteration 0 replaces every best.
-        feasible = (state.best.ranked_violation == 0) & (state.iteration > 0)
-        return jnp.where(feasible, jnp.minimum(state.best.objective, state.best.fitness),
-                         -jnp.inf)
+        later = state.iteration > 0
+        feasible = (state.best.ranked_violation == 0) & later
+        # A colliding path's violation matters only to rules that compare it with the best's:
+        # not to the death penalty (every colliding path scores 0, no more than any best
+        # after iteration 0), nor to feasibility rules against a feasible best.
+        rule = (constraints.constraint_index(constraint) if isinstance(constraint, str)
+                else constraint)
+        free_only = later & ((rule == constraints.constraint_index("death"))
+                             | ((rule == constraints.constraint_index("feasibility")) & feasible))
+        return Bar(objective=jnp.where(feasible, jnp.minimum(state.best.objective,
+                                                             state.best.fitness), -jnp.inf),
+                   free_only=free_only)
 
     return Swarm(start=start, tell=tell, ask=ask, measure=measure_fn, bar=bar)
 

@@ -76,9 +76,10 @@ def run_restarts_of(keys, swarm: pso.Swarm, n_iters: int, measure_above=None) ->
       swarm: the optimiser (its functions see one restart).
       n_iters: updates (static).
       measure_above: optionally ``(x, bar) -> Measured``, called in place of ``swarm.measure``
-        with ``swarm.bar(state)`` (when the swarm has one): it must measure every path whose
-        objective exceeds its particle's bar as ``swarm.measure`` does, and may leave the
-        others unproved (violation inf), which changes nothing the loop returns.
+        with ``swarm.bar(state)`` (a ``pso.Bar``, when the swarm has one): it must measure as
+        ``swarm.measure`` does every path whose objective exceeds its particle's bar (where
+        ``bar.free_only``, at least whether the path is free, and some positive violation if
+        not), and may leave the others unproved (violation inf); the loop returns the same.
 
     Returns:
       ``RestartOutcome``: best_x (n_restarts, n_free), its fitness and violation as the swarm
