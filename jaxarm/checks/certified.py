@@ -45,7 +45,9 @@ Three stages, all batched over paths.
    and is split in two otherwise. So a motion whose clearance (minus the margin) is at least
    ``tol`` everywhere is never undecided: it is proved free once the pieces are small enough;
    one that penetrates by at least ``tol`` somewhere is never undecided there: its pieces shrink
-   until a centre lands inside the obstacle. Each lane of a loop walks one path's pieces
+   until a centre lands inside the obstacle. A path stops at its first witness, and one whose
+   freedom alone matters (``check``'s ``free_only``, from a search's ``pso.Bar``) at its first
+   undecided piece too. Each lane of a loop walks one path's pieces
    depth first and takes the next path when done, so the work grows with the pieces that need
    it, not with a fixed budget per path. The loop runs until its slowest path is decided, so
    few lanes suit few paths: on CPU it has ``FEW_LANES`` lanes; on an accelerator
