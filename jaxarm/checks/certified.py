@@ -97,7 +97,7 @@ from jaxarm.model.problem import ProblemArrays, ProblemSpec
 MAX_LEVELS = 22  # halvings of a sample window; offsets stay exact integers in float32
 LANES = 1024  # paths bisected at once on an accelerator ...
 FEW_LANES, FEW_PATHS = 64, 2048  # ... or FEW_LANES at a time when at most FEW_PATHS need it
-WINDOW_CHUNK = 1024  # paths per call of the window pass (see _compacted_window_pass)
+WINDOW_CHUNK = 1024  # paths per call of the window pass (``_compacted_window_pass``)
 # Pieces per path: the count shares an int32 with three flags, and a path can test a few more
 # than its budget (the first piece of each failing window left, and the pending siblings).
 MAX_BUDGET = 2**27
@@ -219,10 +219,10 @@ def _compacted_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples
                            margin) -> _WindowPass:
     """Stage 1 on the paths ``open_rows[:n_open]`` only, ``WINDOW_CHUNK`` paths at a time.
 
-    Each chunk is a scan over the samples, whose steps cost about the same for 512 paths as
-    for 1024 on polygon scenes: 1024 made a polygon-field search faster and the others no
-    slower (``benchmarks/RESULTS.md``, *Decisions and negative results*, "The window pass
-    computes the shortfall alone").
+    Each chunk is a scan over the samples whose steps cost nearly as much for a few hundred
+    paths as for thousands on polygon scenes, so chunks of 1024 rather than 512
+    (``benchmarks/RESULTS.md``, *Decisions and negative results*, "The window pass computes
+    the shortfall alone").
 
     Args:
       motion: all paths, x of shape (B, n_free).
