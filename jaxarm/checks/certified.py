@@ -70,7 +70,8 @@ Violation (for constraint handling), zero exactly when the motion is certified f
   negative results*, "Constraint rules compare depth x distance"). The rules compare it times
   the travelling distance (``constraints.path_measures``);
 - otherwise: ``(shortfall + tol) * width`` summed over the pieces that end as witness or
-  undecided (plus ``tol * h`` when the budget ran out). A path that grazes an obstacle between
+  undecided (plus ``tol * h`` when the budget ran out); for a path stopped early
+  (``free_only``), over the pieces tested by then; inf for a path not to prove (``prove``). A path that grazes an obstacle between
   samples gets a small violation that shrinks as it moves clear, so feasibility rules lead the
   swarm into the certifiable region.
 
@@ -219,10 +220,10 @@ def _compacted_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples
                            margin) -> _WindowPass:
     """Stage 1 on the paths ``open_rows[:n_open]`` only, ``WINDOW_CHUNK`` paths at a time.
 
-    Each chunk is a scan over the samples whose steps cost nearly as much for a few hundred
-    paths as for thousands on polygon scenes, so chunks of 1024 rather than 512
-    (``benchmarks/RESULTS.md``, *Decisions and negative results*, "The window pass computes
-    the shortfall alone").
+    Each chunk is a scan over the samples; on CPU, polygon scenes pay for each scan step
+    far more than for its paths, so chunks hold 1024 paths rather than 512 (faster on
+    polygon-field, slower on death-trap: ``benchmarks/RESULTS.md``, *Decisions and negative
+    results*, "The window pass computes the shortfall alone"; unmeasured on a GPU).
 
     Args:
       motion: all paths, x of shape (B, n_free).

@@ -113,9 +113,11 @@ def limit_rows(spec: ProblemSpec, arrays: ProblemArrays, rows) -> limits_lib.Lim
 
 @functools.cache
 def vmapped_evaluate(spec: ProblemSpec):
-    """``evaluate`` for one spec, as a function of ``(arrays, x)`` whose ``jax.vmap`` over x
-    folds the mapped axis into the batch (one long kernel call) instead of adding a short
-    outer axis to every array in it. Not reverse-differentiable (``jax.custom_batching``).
+    """``evaluate`` for one spec, as a function of ``(arrays, x, bar=None)`` (``bar``: a
+    ``pso.Bar`` or pair of arrays of shape ``x.shape[:-1]``; None: every path proved in full)
+    whose ``jax.vmap`` over x folds the mapped axis into the batch (one long kernel call)
+    instead of adding a short outer axis to every array in it. Not reverse-differentiable
+    (``jax.custom_batching``).
     """
     @jax.custom_batching.custom_vmap
     def evaluate_spec(arrays, x, bar):

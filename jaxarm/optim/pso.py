@@ -419,8 +419,9 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
     def bar(state: SwarmState) -> Bar:
         # A path changes the state only by beating its particle's personal best. Under every
         # rule a path scores at most its objective, and a feasible one scores its objective
-        # (its fitness under the death penalty, the same number), so against a feasible
-        # personal best a path needs a higher objective. Iteration 0 replaces every best.
+        # (its fitness under the death penalty and feasibility rules, the same number), so
+        # against a feasible personal best (ranked violation 0: obstacles and joint limits) a
+        # path needs a higher objective. Iteration 0 replaces every best.
         later = state.iteration > 0
         feasible = (state.best.ranked_violation == 0) & later
         # A colliding path's violation matters only to rules that compare it with the best's:
