@@ -71,9 +71,9 @@ Violation (for constraint handling), zero exactly when the motion is certified f
   the travelling distance (``constraints.path_measures``);
 - otherwise: ``(shortfall + tol) * width`` summed over the pieces that end as witness or
   undecided (plus ``tol * h`` when the budget ran out); for a path stopped early
-  (``free_only``), over the pieces tested by then; inf for a path not to prove (``prove``). A path that grazes an obstacle between
-  samples gets a small violation that shrinks as it moves clear, so feasibility rules lead the
-  swarm into the certifiable region.
+  (``free_only``), over the pieces tested by then; inf for a path not to prove (``prove``).
+  A path that grazes an obstacle between samples gets a small violation that shrinks as it
+  moves clear, so feasibility rules lead the swarm into the certifiable region.
 
 Results per path depend only on that path (its pieces are visited in the same order whatever
 else is in the batch, in chunks or lanes of any count), so they are bit-identical for any batch
@@ -130,7 +130,7 @@ class _Work(NamedTuple):
 
     failing_words: jax.Array  # shape=(B, n_words), uint32: the failing windows
     first_window: jax.Array  # shape=(B,), int32: the window to bisect first when it fails
-    free_only: jax.Array  # shape=(B,), bool: stop at the first piece that is not free
+    free_only: jax.Array  # shape=(B,), bool: stop at the first undecided piece too
     work_rows: jax.Array  # shape=(B,), int32: the rows to bisect first, then anything
     n_work: jax.Array  # shape=(), int32: how many rows need it
 
