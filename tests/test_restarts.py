@@ -10,7 +10,6 @@ import pytest
 from sizes import SMALL
 
 import jaxarm
-from jaxarm.checks.evaluate import vmapped_evaluate
 from jaxarm.optim import constraints, pso, restarts
 from jaxarm.optim.constraints import Measured
 from jaxarm.optim.restarts import compiled_search
@@ -61,13 +60,7 @@ def test_paths_left_unproved_change_no_update(case2):
     unproved equals the update with every path proved, bit for bit, and paths were left."""
     # a tolerance of 1 cm: some paths end undecided, so some stop early (``Bar.free_only``)
     problem = case2.replace(collision="certified", certify_tol=1.0)
-    evaluate = vmapped_evaluate(problem.spec)
-
-    def measure(x, bar=None):
-        evaluation = evaluate(problem.arrays, x, bar)
-        return constraints.path_measures(evaluation.fitness, evaluation.violation,
-                                         evaluation.distance)
-
+    measure = restarts.path_measurement(problem.spec, problem.arrays)
     measure_every = jax.jit(jax.vmap(lambda x: measure(x)))
     measure_some = jax.jit(jax.vmap(measure))
     low, high = (jnp.asarray(b, jnp.float32) for b in problem.bounds())
@@ -100,13 +93,7 @@ def test_a_search_that_skips_proofs_returns_what_proving_all_returns(case2):
     """The restart loop with ``measure_above`` (what ``solve`` runs) against the same loop
     measuring every path in full: the same outcome, bit for bit, under two rules."""
     problem = case2.replace(collision="certified", certify_tol=1.0)
-    evaluate = vmapped_evaluate(problem.spec)
-
-    def measure(x, bar=None):
-        evaluation = evaluate(problem.arrays, x, bar)
-        return constraints.path_measures(evaluation.fitness, evaluation.violation,
-                                         evaluation.distance)
-
+    measure = restarts.path_measurement(problem.spec, problem.arrays)
     low, high = (jnp.asarray(b, jnp.float32) for b in problem.bounds())
     config = pso.PRESETS["A"]
     keys = jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.key(2), jnp.arange(8))

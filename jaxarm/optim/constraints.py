@@ -99,7 +99,8 @@ def constraint_index(constraint: str) -> int:
     return CONSTRAINTS.index(one_of("constraint", constraint, CONSTRAINTS))
 
 
-def _index(constraint):
+def rule_index(constraint):
+    """A rule given by name or by index (an int, or traced) as its index in ``CONSTRAINTS``."""
     return constraint_index(constraint) if isinstance(constraint, str) else constraint
 
 
@@ -132,7 +133,7 @@ def score(constraint, state: RuleState, measured: Measured, iteration, n_iters: 
       >>> score("feasibility", state, free_and_colliding, 1, 100).tolist()
       [5.0, -3.0]
     """
-    index = _index(constraint)
+    index = rule_index(constraint)
     fitness, violation, objective = measured.fitness, measured.ranked_violation, measured.objective
     feasible = violation == 0
     epsilon = epsilon_level(state, iteration, n_iters)

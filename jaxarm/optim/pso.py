@@ -427,8 +427,7 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
         # A colliding path's violation matters only to rules that compare it with the best's:
         # not to the death penalty (every colliding path scores 0, no more than any best
         # after iteration 0), nor to feasibility rules against a feasible best.
-        rule = (constraints.constraint_index(constraint) if isinstance(constraint, str)
-                else constraint)
+        rule = constraints.rule_index(constraint)
         free_only = later & ((rule == constraints.constraint_index("death"))
                              | ((rule == constraints.constraint_index("feasibility")) & feasible))
         return Bar(objective=jnp.where(feasible, jnp.minimum(state.best.objective,

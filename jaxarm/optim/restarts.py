@@ -150,13 +150,7 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
       ``RestartOutcome`` with leading axis n_restarts.
     """
     low, high, seed, restart_ids, init_particles, n_given, constraint = data
-    evaluate = vmapped_evaluate(spec)
-
-    def measure(x, bar=None):
-        evaluation = evaluate(arrays, x, bar)
-        return constraints.path_measures(evaluation.fitness, evaluation.violation,
-                                         evaluation.distance)
-
+    measure = path_measurement(spec, arrays)
     if isinstance(rules, evosax_adapter.StrategyConfig):  # "evosax:<Strategy>"
         swarm = evosax_adapter.strategy_swarm(rules, measure, low, high, n_particles=n_particles,
                                          constraint=constraint)
@@ -167,6 +161,21 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
 
     keys = jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.key(seed), restart_ids)
     return run_restarts_of(keys, swarm, n_iters, measure_above=measure)
+
+
+def path_measurement(spec: ProblemSpec, arrays: ProblemArrays):
+    """What a search measures of its paths: ``(x, bar=None) -> constraints.Measured`` for x of
+    shape (n, n_free), mapped over restarts by ``jax.vmap`` as one batch; ``bar`` (a
+    ``pso.Bar``) lets the certified check skip what cannot change the swarm
+    (``checks.evaluate.evaluate``)."""
+    evaluate = vmapped_evaluate(spec)
+
+    def measure(x, bar=None):
+        evaluation = evaluate(arrays, x, bar)
+        return constraints.path_measures(evaluation.fitness, evaluation.violation,
+                                         evaluation.distance)
+
+    return measure
 
 
 compiled_search = jit(
