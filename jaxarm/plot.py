@@ -7,6 +7,7 @@
   marked (paper Fig. 12);
 - ``plot_escape_rates`` and ``plot_escape_curves``: a study's escape rates with 95 % intervals
   and the fraction escaped by each iteration;
+- ``plot_evolving_gains``: what escaped runs gain after their escape, ours against the paper's;
 - ``plot_feasible_map``: a 2-D slice of the free-coefficient space, coloured by fitness;
 - ``plot_profiles``: a trajectory's position, velocity, acceleration (and torque) against time,
   with the limits as dashed lines;
@@ -162,6 +163,34 @@ def plot_escape_rates(study, ax=None, title: str | None = None):
               bbox_to_anchor=(1.0, 1.0))  # beside the axes: bars reach 1.0 on either side
     ax.set_title(title or f"{study.problem_name}: escape within {study.n_iters} iterations "
                           f"({study.methods[0].n_restarts} seeds, {study.collision} check)")
+    return figure
+
+
+def plot_evolving_gains(ours: dict, paper: dict, ax=None, title: str | None = None):
+    """What escaped runs gain between their escape and the last iteration: per preset, our
+    seeds' gains as a box (whiskers at the 5th and 95th percentiles) and the paper's runs as
+    dots.
+
+    Args:
+      ours: ``{preset label: study.EvolvingRuns}``: our escaped seeds.
+      paper: the paper's runs, the same labels in the same order.
+      ax: the axes to draw on (None: a new figure).
+      title: the figure's title (None: a default).
+    """
+    labels = list(ours)
+    figure, ax = _axes(ax, (max(5.0, 1.2 * len(labels) + 2.0), 3.8))
+    positions = np.arange(len(labels))
+    ax.boxplot([ours[label].gain for label in labels], positions=positions, widths=0.5,
+               whis=(5, 95), showfliers=False, label="ours: escaped seeds")
+    for i, label in enumerate(labels):
+        gains = paper[label].gain
+        ax.plot(np.full(len(gains), positions[i] + 0.32), gains, "o", color="#d62728",
+                markersize=5, label="paper: escaped runs" if i == 0 else None)
+    ax.set_xticks(positions, labels)
+    ax.set_ylabel("fitness gained after the escape")
+    ax.axhline(0.0, color="0.7", linewidth=0.8)
+    ax.legend(fontsize=8, loc="upper right")
+    ax.set_title(title or "Fitness gained between escape and the last iteration")
     return figure
 
 

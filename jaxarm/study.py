@@ -57,6 +57,25 @@ def parse_variants(methods: Sequence, constraint: str) -> list[Variant]:
     return variants
 
 
+class EvolvingRuns(NamedTuple):
+    """The paper's Table 2 pairs for escaped runs: the global best's fitness at the escape
+    (*escaping*) and at the last iteration (*evolving*)."""
+
+    escape_iter: np.ndarray  # shape=(n_runs,), int: the first iteration with a free particle
+    escaping: np.ndarray  # shape=(n_runs,): the global best's fitness at that iteration
+    evolved: np.ndarray  # shape=(n_runs,): the global best's fitness at the last iteration
+
+    @property
+    def gain(self) -> np.ndarray:
+        """Fitness gained between the escape and the last iteration, shape (n_runs,)."""
+        return self.evolved - self.escaping
+
+    @staticmethod
+    def pooled(runs: Sequence[EvolvingRuns]) -> EvolvingRuns:
+        """Several methods' runs as one set."""
+        return EvolvingRuns(*(np.concatenate(field) for field in zip(*runs)))
+
+
 class MethodStudy(NamedTuple):
     """Per-restart outcomes of one variant over a study's seeds, and their summaries."""
 
@@ -90,6 +109,13 @@ class MethodStudy(NamedTuple):
         n_iters = self.outcome.history.shape[1] - 1
         iters = np.where(self.escaped, self.outcome.escape_iter, n_iters + 1)
         return (iters[:, None] <= np.arange(n_iters + 1)).mean(axis=0)
+
+    def evolving_runs(self) -> EvolvingRuns:
+        """The escaped seeds' Table 2 pairs, in seed order (from the global best's history)."""
+        runs = np.flatnonzero(self.escaped)
+        escape = self.outcome.escape_iter[runs]
+        history = np.asarray(self.outcome.history, np.float64)
+        return EvolvingRuns(escape, history[runs, escape], history[runs, -1])
 
     def summary(self) -> dict:
         """Escape rate, 95 % Wilson interval, escape-iteration quartiles, fitness quantiles."""

@@ -272,8 +272,8 @@ def test_share_capacities_gives_each_arm_its_largest_slots_and_one_search_progra
     tunnel = jaxarm.load_scenario("four-link-tunnel", collision="sampled")
     shared = jaxarm.share_capacities([case1, case2, trap, tunnel])
     assert [p.name for p in shared] == [case1.name, case2.name, trap.name, tunnel.name]
-    # (4, 0, 4), (1, 0, 4) and (0, 1, 4) give (4, 1, 4); the only 4-link arm keeps its own
-    assert {p.capacities for p in shared[:3]} == {(4, 1, 4)}
+    # (8, 0, 4), (1, 0, 4) and (0, 1, 4) give (8, 1, 4); the only 4-link arm keeps its own
+    assert {p.capacities for p in shared[:3]} == {(8, 1, 4)}
     assert shared[3] is tunnel
     # Same verdicts, violations and fitness (to float32 rounding) at the padded capacities:
     # the paper's published paths (free and colliding) and random ones, near and far

@@ -29,7 +29,24 @@ def test_case_1_published_paths_are_free_and_the_free_optimum_is_blocked(case1, 
 
 
 def test_case_1_published_paths_clear_the_obstacles_under_a_dense_oracle(case1):
-    assert dense_clearance(case1, a6_array(published.CASE_1)).min() > 0.3
+    """The first three circles keep Table 2's motions 0.5 cm clear, the five that block the
+    better paths 0.05 cm (less 0.02 cm for rounding centres and radii to 0.01 cm)."""
+    clearance = dense_clearance(case1, a6_array(published.CASE_1))
+    assert clearance.min() >= 0.03
+    first_three = case1.replace(world=jaxarm.World(circles=case1.world.circles[:3]),
+                                capacities=None)
+    assert dense_clearance(first_three, a6_array(published.CASE_1)).min() > 0.3
+
+
+def test_table_2s_nine_escaped_runs_are_its_pairs():
+    runs = published.CASE_1_ESCAPED_RUNS
+    assert [sum(r.preset == p for r in runs) for p in "ABC"] == [
+        published.CASE_1_ESCAPES[p] for p in "ABC"]
+    # the gains as printed in Table 2 (fitness at iteration 100 minus fitness at the escape)
+    assert [round(r.gain, 4) for r in runs] == [0.0007, 0.0079, 0.0339, 0.0066, 0.0003, 0.0101,
+                                                0.0022, 0.0334, 0.0015]
+    assert all(r.escaping.source.endswith("escaping") for r in runs)
+    assert [r.escape_iter for r in runs] == [48, 24, 19, 29, 87, 8, 32, 39, 94]
 
 
 def test_case_2_verdicts_agree_with_the_paper_but_one(case2):

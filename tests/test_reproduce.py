@@ -39,11 +39,13 @@ def test_cli_reproduce_paper_writes_a_report_with_every_table(capsys, tmp_path):
                     "shipped suite", "reconstructed", "Constraint rules compared",
                     "| death-trap | A:epsilon |", "feasible set of case II", "free share",
                     "Case II's optimum in seconds", "| all four | ", "| certified |",
-                    "proves free for every r: A ", "`jaxarm.certify`: "):
+                    "proves free for every r: A ", "`jaxarm.certify`: ",
+                    "| A, B and C pooled | our median | paper's median | Mann-Whitney p |",
+                    "| 3 | +0.0007, +0.0079, +0.0339 |"):
         assert heading in report
     for image in ("case1_escape_rates.png", "case1_motion.png", "suite_escape_rates.png",
                   "case2_feasible_slices.png", "death-trap_rule_curves.png",
-                  "case2_profiles.png"):
+                  "case2_profiles.png", "case1_evolving_gains.png"):
         assert f"]({image})" in report and (tmp_path / image).stat().st_size > 5000
     assert len((tmp_path / "case1_study.csv").read_text().splitlines()) == 1 + 6 * 8
     assert_tables_render(report)

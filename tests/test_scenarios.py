@@ -185,7 +185,7 @@ def test_saved_scenarios_write_arrays_on_one_line_and_any_text(tmp_path):
     folder.mkdir()
     path = jaxarm.save_scenario(problem, folder / "é.toml")
     text = path.read_text(encoding="utf-8")
-    assert "lengths = [30.0, 30.0, 20.0]\n" in text and "capacities = [4, 0, 4]\n" in text
+    assert "lengths = [30.0, 30.0, 20.0]\n" in text and "capacities = [8, 0, 4]\n" in text
     assert "joint_limits = [[-3.0, 3.0], [-3.0, 3.0], [-3.0, 3.0]]\n" in text
     assert "center = [46.0, 4.0]\n" in text and "[\n" not in text
     assert jaxarm.load_scenario(path) == problem

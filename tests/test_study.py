@@ -105,6 +105,24 @@ def test_study_summaries_tables_and_records(case2):
         result.method("B")
 
 
+def test_evolving_runs_are_the_escaped_seeds_table_2_pairs(case1):
+    result = study.escape_study(case1, ["A", "B"], n_restarts=12, **SMALL)
+    runs = [m.evolving_runs() for m in result.methods]
+    for method, run in zip(result.methods, runs):
+        outcome = method.outcome
+        escaped = np.flatnonzero(outcome.escape_iter >= 0)
+        assert len(escaped) >= 1 and run.escape_iter.tolist() == outcome.escape_iter[escaped].tolist()
+        # death penalty: nothing is free before the escape, the last global best is the best
+        assert np.all(run.escaping > 0)
+        assert np.all(outcome.history[escaped, run.escape_iter - 1][run.escape_iter > 0] == 0)
+        np.testing.assert_array_equal(run.evolved, outcome.best_fitness[escaped])
+        np.testing.assert_array_equal(run.gain, run.evolved - run.escaping)
+        assert np.all(run.gain >= 0)
+    pooled = study.EvolvingRuns.pooled(runs)
+    assert len(pooled.gain) == sum(len(r.gain) for r in runs)
+    np.testing.assert_array_equal(pooled.escaping[:len(runs[0].gain)], runs[0].escaping)
+
+
 def test_records_name_the_base_seed_and_each_restart(case2):
     """Restart i is seeded by (base seed, i): the columns say which is which."""
     result = study.escape_study(case2, ["A"], n_restarts=2, seed=5, **SMALL)

@@ -318,7 +318,7 @@ def share_capacities(problems) -> list[Problem]:
       >>> from jaxarm import load_scenario
       >>> [p.capacities for p in share_capacities(
       ...     [load_scenario("paper-case-1"), load_scenario("death-trap")])]
-      [(4, 1, 4), (4, 1, 4)]
+      [(8, 1, 4), (8, 1, 4)]
     """
     problems = list(problems)
     for index, problem in enumerate(problems):
