@@ -189,7 +189,7 @@ def plot_evolving_gains(ours: dict, paper: dict, ax=None, title: str | None = No
     ax.set_xticks(positions, labels)
     ax.set_ylabel("fitness gained after the escape")
     ax.axhline(0.0, color="0.7", linewidth=0.8)
-    ax.legend(fontsize=8, loc="upper right")
+    ax.legend(fontsize=8, loc="best")
     ax.set_title(title or "Fitness gained between escape and the last iteration")
     return figure
 
