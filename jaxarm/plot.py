@@ -180,8 +180,8 @@ def plot_evolving_gains(ours: dict, paper: dict, ax=None, title: str | None = No
     labels = list(ours)
     figure, ax = _axes(ax, (max(5.0, 1.2 * len(labels) + 2.0), 3.8))
     positions = np.arange(len(labels))
-    ax.boxplot([ours[label].gain for label in labels], positions=positions, widths=0.5,
-               whis=(5, 95), showfliers=False, label="ours: escaped seeds")
+    boxes = ax.boxplot([ours[label].gain for label in labels], positions=positions, widths=0.5,
+                       whis=(5, 95), showfliers=False)
     for i, label in enumerate(labels):
         gains = paper[label].gain
         ax.plot(np.full(len(gains), positions[i] + 0.32), gains, "o", color="#d62728",
@@ -189,7 +189,9 @@ def plot_evolving_gains(ours: dict, paper: dict, ax=None, title: str | None = No
     ax.set_xticks(positions, labels)
     ax.set_ylabel("fitness gained after the escape")
     ax.axhline(0.0, color="0.7", linewidth=0.8)
-    ax.legend(fontsize=8, loc="best")
+    handles, names = ax.get_legend_handles_labels()  # boxplot's label= needs matplotlib 3.9
+    ax.legend([boxes["boxes"][0], *handles], ["ours: escaped seeds", *names], fontsize=8,
+              loc="best")
     ax.set_title(title or "Fitness gained between escape and the last iteration")
     return figure
 

@@ -59,7 +59,8 @@ def parse_variants(methods: Sequence, constraint: str) -> list[Variant]:
 
 class EvolvingRuns(NamedTuple):
     """The paper's Table 2 pairs for escaped runs: the global best's fitness at the escape
-    (*escaping*) and at the last iteration (*evolving*)."""
+    (its *escaping* entry, ``escaping``) and at the last iteration (its *evolving* entry,
+    ``evolved``)."""
 
     escape_iter: np.ndarray  # shape=(n_runs,), int: the first iteration with a free particle
     escaping: np.ndarray  # shape=(n_runs,): the global best's fitness at that iteration

@@ -97,11 +97,14 @@ def test_case_1_has_no_free_path_above_0_18_and_had_some_before(case1, three_cir
     assert len(blocking.free_paths_above(case1, 0.18, **box).x) == 0
     proof = blocking.prove_blocked(case1, 0.18, [-128.0] * 3, [128.0] * 3, half_width=16.0,
                                    min_half_width=1 / 64)
-    assert proof.proved and proof.by_collision > 0
+    assert proof.proved and proof.meets_box and proof.by_collision > 0
     # around the best path the three circles left free (0.1904 at [49.4, -50.7, -3.2])
     before = blocking.prove_blocked(three_circles, 0.18, [44, -56, -8], [56, -44, 4],
                                     half_width=2.0, min_half_width=1 / 8)
     assert not before.proved
+    # a box the better paths do not meet proves nothing, though all its cubes are settled
+    far = blocking.prove_blocked(three_circles, 0.18, [128.0] * 3, [256.0] * 3, half_width=16.0)
+    assert not far.proved and not far.meets_box and not len(far.unresolved)
     assert np.max(np.asarray(jaxarm.fitness(three_circles, before.unresolved))) > 0.18
 
 

@@ -46,6 +46,9 @@ def test_table_2s_nine_escaped_runs_are_its_pairs():
     assert [round(r.gain, 4) for r in runs] == [0.0007, 0.0079, 0.0339, 0.0066, 0.0003, 0.0101,
                                                 0.0022, 0.0334, 0.0015]
     assert all(r.escaping.source.endswith("escaping") for r in runs)
+    # each pair is one run's: "Table 2, A run 1 escaping" and "Table 2, A run 1 evolved"
+    assert all(r.evolved.source.startswith(r.escaping.source.removesuffix("escaping") + "evolved")
+               for r in runs)
     assert [r.escape_iter for r in runs] == [48, 24, 19, 29, 87, 8, 32, 39, 94]
 
 

@@ -163,7 +163,8 @@ def test_case_1_death_penalty_escape_is_consistent_with_the_papers_3_of_7_for_a(
 def test_feasibility_rules_escape_on_every_paper_case(fixture, request):
     # On case 1 they did not while the rules compared the depth of a collision alone (82 %
     # over 200 seeds; benchmarks/RESULTS.md). Since its five circles that block the better
-    # paths, case 1 escapes in 99.5 % of 1000 seeds (sampled check), 197 of these 200.
+    # paths, case 1 escapes in 99.2 % of reproduce-paper's 500 seeds (sampled check;
+    # RESULTS.md, The paper's report), 197 of these 200.
     assert _escape_rate(request.getfixturevalue(fixture), "A", "feasibility") >= 0.97
 
 

@@ -47,7 +47,7 @@ _POLYGON_FIELDS = ("vertices", "normals", "extent_low", "extent_high", "edge_val
                    "polygon_valid")
 
 
-def _capacity(count: int) -> int:
+def slot_capacity(count: int) -> int:
     """0 for none (the kernel for that shape is skipped), else the smallest power of two >=
     count: layouts of similar size share one program."""
     return 0 if count == 0 else 1 << (count - 1).bit_length()
@@ -102,9 +102,9 @@ class World:
         polygons = self.polygon_vertices()
         most_vertices = max((len(p) for p in polygons), default=4)
         return (
-            _capacity(len(self.circles)),
-            _capacity(len(polygons)),
-            max(4, _capacity(most_vertices)),
+            slot_capacity(len(self.circles)),
+            slot_capacity(len(polygons)),
+            max(4, slot_capacity(most_vertices)),
         )
 
     def slot_names(self, capacities: tuple[int, int, int]) -> list[str | None]:

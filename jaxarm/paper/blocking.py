@@ -27,13 +27,15 @@ from jaxarm.choices import DEFAULT_METHODS
 from jaxarm.model import path
 from jaxarm.model.arm import joint_positions
 from jaxarm.model.problem import Problem
+from jaxarm.model.world import slot_capacity
 
 
 def motion_segments(problem: Problem, x, n_points: int) -> tuple[np.ndarray, np.ndarray]:
-    """Segments that cover what the motions sweep, in float64: every link at ``n_points``
+    """Segments that outline what the motions sweep, in float64: every link at ``n_points``
     equally spaced times, and the path of every joint and of the end-effector from one time
     to the next (the sides of the strip a link sweeps between two times, which the link's
-    positions alone would leave open).
+    positions alone would leave open; the strip's inside is not covered, which dense times
+    make negligible).
 
     Args:
       x: free parameters, shape (n_paths, n_free).
@@ -50,7 +52,11 @@ def motion_segments(problem: Problem, x, n_points: int) -> tuple[np.ndarray, np.
 
 
 def _joint_positions_64(problem: Problem, x, r) -> np.ndarray:
-    """Joint positions (base first) in float64 NumPy, shape (n_paths, len(r), n_joints + 1, 2)."""
+    """Joint positions (base first) in float64 NumPy, shape (n_paths, len(r), n_joints + 1, 2).
+
+    NumPy rather than the package's JAX kinematics under x64: paper-case-1's circles were
+    picked with this one, and the picks moved when both it and the slot counts of
+    ``block_paths`` were changed (which of the two moved them was not tested)."""
     x = np.asarray(x, np.float64).reshape(-1, problem.n_free)
     polynomial = path.coefficients(np.asarray(problem.start, np.float64),
                                    np.asarray(problem.goal, np.float64), x, problem.degree)
@@ -77,8 +83,18 @@ def _nearest_distances(points, a, b):  # float32, or float64 under jax.enable_x6
 
 def nearest_distances(points, segments, *, exact: bool = False,
                       chunk: int = 1 << 15) -> np.ndarray:
-    """Distance from each point to the nearest of ``segments = (a, b)``, cm, shape (n_points,):
-    in float32, or in float64 with ``exact``."""
+    """Distance from each point to the nearest of ``segments``, cm: in float32, or in float64
+    with ``exact``.
+
+    Args:
+      points: shape (n_points, 2), cm.
+      segments: ``(a, b)``, end points, each of shape (n_segments, 2), cm.
+      exact: float64 instead of float32.
+      chunk: segments per compiled call.
+
+    Returns:
+      Shape (n_points,).
+    """
     points = np.asarray(points, np.float64).reshape(-1, 2)
     a, b = (np.asarray(s, np.float64) for s in segments)
     if not len(points):
@@ -144,14 +160,11 @@ def with_circles(problem: Problem, circles, capacities=None) -> Problem:
                            capacities=capacities)
 
 
-def _capacity(count: int) -> int:
-    return 1 << max(2, int(np.ceil(np.log2(max(count, 1)))))
-
-
 def _circles_through(point, keep, gap: float) -> list[tuple[float, float, float]]:
-    """Circles that hold ``point`` and keep ``gap`` from the segments ``keep``: centres moved
-    from the point away from the nearest segment (and 20 degrees either side) by 0 to 64 cm,
-    each as large as the gap allows."""
+    """Circles that hold ``point`` (x, y) and keep ``gap`` from the segments ``keep`` (``(a,
+    b)``, each of shape (n_segments, 2)): centres moved from the point away from the nearest
+    segment (and 20 degrees either side) by 0 to 64 cm, each as large as the gap allows; a list
+    of (x, y, radius)."""
     a, b = keep
     ab = b - a
     t = np.clip(np.sum((point - a) * ab, -1) / np.maximum(np.sum(ab * ab, -1), 1e-30), 0, 1)
@@ -203,9 +216,11 @@ def block_paths(problem: Problem, keep_free, block, *, gap: float = 0.05,
     block = np.asarray(block, np.float64).reshape(-1, problem.n_free)
     world = problem.world
     # one capacity for every trial: a new layout is new data, not a new program
-    capacities = (_capacity(len(world.circles) + max_obstacles),
-                  _capacity(len(world.polygon_vertices())),
-                  _capacity(max([4] + [len(v) for v in world.polygon_vertices()])))
+    # At least 4 polygon and vertex slots even for circles only: paper-case-1's circles were
+    # picked so (see _joint_positions_64).
+    n_polygons, n_vertices = world.capacities()[1:]
+    capacities = (slot_capacity(len(world.circles) + max_obstacles), max(4, n_polygons),
+                  max(4, n_vertices))
     rng = np.random.default_rng(seed)
     circles, seeds, blocked = [], [], []
     current = problem.replace(capacities=capacities)
@@ -314,12 +329,15 @@ class BlockProof(NamedTuple):
     by_fitness: int  # cells whose every path has fitness <= threshold
     by_collision: int  # cells whose every path collides at a sample
     unresolved: np.ndarray  # shape=(n, n_free): centres of the cells settled neither way
-    min_half_width: float  # half-width of the smallest cells
+    min_half_width: float  # half-width of the smallest cells examined
     levels: int  # subdivisions
+    meets_box: bool  # some cell centre has an obstacle-free fitness above the threshold
 
     @property
     def proved(self) -> bool:
-        return len(self.unresolved) == 0
+        """Every path above the threshold collides at a sample: nothing is left, and the
+        better paths meet the box (convexity then puts all of them inside it)."""
+        return len(self.unresolved) == 0 and self.meets_box
 
 
 def _sample_bounds(problem: Problem):
@@ -337,8 +355,8 @@ def _sample_bounds(problem: Problem):
     spread = np.abs(path.basis_values(problem.degree, r)[:, 1:]).sum(-1)  # (n_samples,)
     speed = np.abs(path.basis_values(problem.degree, r, order=1)[:, 1:]).sum(-1)
     lengths = np.asarray(problem.arm.lengths, np.float64)
-    reach = np.cumsum(np.arange(1, len(lengths) + 1) * lengths)  # (n_links,)
-    moves = spread[:, None] * reach[None, :]  # (n_samples, n_links)
+    lever = np.cumsum(np.arange(1, len(lengths) + 1) * lengths)  # (n_links,): sum_{m<=j} m l_m
+    moves = spread[:, None] * lever[None, :]  # (n_samples, n_links)
     lipschitz = problem.n_joints * float(np.sum(path.simpson_weights(problem.n_samples) * speed))
     return moves, lipschitz
 
@@ -368,6 +386,12 @@ def _depth_margin_fn(problem: Problem):
     return jit(margin)
 
 
+# What the proof's float64 bounds must beat, for the float32 checks it speaks for: link
+# positions there are off by about 1e-5 cm, the travelling distance by a few parts in 1e7.
+COLLISION_SLACK = 1e-3  # cm
+FITNESS_SLACK = 1e-5  # relative
+
+
 def prove_blocked(problem: Problem, threshold: float, low, high, *, half_width: float = 8.0,
                   min_half_width: float = 1 / 64, max_cells: int = 1 << 22,
                   chunk: int = 1 << 12) -> BlockProof:
@@ -377,15 +401,17 @@ def prove_blocked(problem: Problem, threshold: float, low, high, *, half_width: 
     distance at its centre, less its Lipschitz bound over the cube, is still at least
     ``1 / threshold`` (every path in it has fitness <= threshold), or when at some sample of r
     a link of the centre's path lies deeper in an obstacle than any point of that link can
-    move within the cube (every path in it collides at that sample, so under the sampled
-    check and under the certified one alike; bounds in ``_sample_bounds``). Other cubes are
-    split in eight, down to ``min_half_width``; the centres of the cubes left are returned.
+    move within the cube, by more than ``COLLISION_SLACK`` (every path in it collides at that
+    sample, under the sampled check in float32 and under the certified one alike; bounds in
+    ``_sample_bounds``). Other cubes are split in 2^n_free, down to ``min_half_width``; the
+    centres of the cubes left are returned.
     Cubes on the box's boundary are settled only by fitness, so the box need not be known to
     hold every path above the threshold: if one reaches out, cubes stay unresolved. The
     travelling distance is convex in the free parameters (each theta' is affine in them and
     sqrt(1 + u^2) is convex), so the paths above the threshold form a convex set: when every
-    boundary cube is settled by fitness and the set meets the box, it lies inside the box, and
-    the proof covers every path. Float64 throughout; worlds of circles only.
+    boundary cube is settled by fitness and the set meets the box (some cube centre lies in it:
+    ``BlockProof.meets_box``), it lies inside the box, and the proof covers every path. Float64
+    throughout; worlds of circles only.
 
     Args:
       low, high: the box, shape (n_free,), a whole number of ``2 * half_width`` wide.
@@ -414,7 +440,7 @@ def prove_blocked(problem: Problem, threshold: float, low, high, *, half_width: 
         axes = [np.arange(lo + half_width, hi + half_width, 2 * half_width)
                 for lo, hi in zip(low, high)]
         cells = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, problem.n_free)
-        h, by_fitness, by_collision, levels = half_width, 0, 0, 0
+        h, by_fitness, by_collision, levels, meets_box = half_width, 0, 0, 0, False
         corners = np.stack(np.meshgrid(*[[-1.0, 1.0]] * problem.n_free, indexing="ij"),
                            -1).reshape(-1, problem.n_free)
         while len(cells):
@@ -423,8 +449,10 @@ def prove_blocked(problem: Problem, threshold: float, low, high, *, half_width: 
                 part = cells[begin:begin + chunk]
                 padded = np.concatenate([part, np.repeat(part[:1], chunk - len(part), 0)])
                 x = jnp.asarray(padded)
-                low_fit = np.asarray(distance(x))[:len(part)] - lipschitz * h >= 1.0 / threshold
-                hit = np.asarray(margin(x, jnp.full(chunk, h)))[:len(part)] > 1e-9
+                centre_distance = np.asarray(distance(x))[:len(part)]
+                meets_box |= bool(np.any(centre_distance < 1.0 / threshold))
+                low_fit = centre_distance - lipschitz * h >= (1.0 + FITNESS_SLACK) / threshold
+                hit = np.asarray(margin(x, jnp.full(chunk, h)))[:len(part)] > COLLISION_SLACK
                 # on the box's boundary only fitness settles a cube: better paths reaching out
                 # of the box leave cubes unresolved instead of going unseen
                 hit &= ~np.any((part - h <= low + 1e-9) | (part + h >= high - 1e-9), axis=1)
@@ -432,12 +460,13 @@ def prove_blocked(problem: Problem, threshold: float, low, high, *, half_width: 
                 by_collision += int((hit & ~low_fit).sum())
                 keep.append(part[~low_fit & ~hit])
             cells = np.concatenate(keep)
-            if h / 2 < min_half_width or len(cells) * len(corners) > max_cells:
+            if not len(cells) or h / 2 < min_half_width or len(cells) * len(corners) > max_cells:
                 break
             h /= 2
             levels += 1
             cells = (cells[:, None, :] + h * corners[None]).reshape(-1, problem.n_free)
-    return BlockProof(float(threshold), by_fitness, by_collision, cells, float(h), levels)
+    return BlockProof(float(threshold), by_fitness, by_collision, cells, float(h), levels,
+                      meets_box)
 
 
 class BetterPathLayout(NamedTuple):

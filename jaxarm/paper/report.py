@@ -421,10 +421,11 @@ def _reconstruction_section(report: _Report, case1, case2, case1_study) -> None:
         f"{_orientation(case1.goal):.4f} rad, elbow +1). Obstacles: the largest circles that "
         "keep every published feasible set clear, picked to block the most of the initial range "
         "and every published infeasible set; on case 1, further circles that keep Table 2's "
-        "motions 0.05 cm clear block every path better than the paper's best could have missed "
-        "(`jaxarm.paper.blocking`: none free above fitness 0.18, proved by branch and bound) "
-        "and narrow the free set near the optimum; `benchmarks/reconstruct_scenarios.py` runs "
-        "every step. One layout consistent with the paper's numbers, not the paper's own.", "",
+        "motions about 0.05 cm clear block every path above fitness 0.18 (the paper's best: "
+        "0.1774; `jaxarm.paper.blocking` proves none is free at the samples by branch and "
+        "bound) and narrow the free set near the optimum; "
+        "`benchmarks/reconstruct_scenarios.py` runs every step. One layout consistent with "
+        "the paper's numbers, not the paper's own.", "",
         f"Case 1, Table 2's coefficient sets on the shipped scenario (worst relative fitness "
         f"error {max(errors):.1e}; C run 5's evolved set, printed with a62 = +69.649, is left "
         "out: fitness is even in each a6, so its sign cannot be checked):", "",
