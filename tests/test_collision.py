@@ -13,6 +13,7 @@ from random_worlds import random_world_problems
 import jaxarm
 from jaxarm.checks import collision
 from jaxarm.model import path
+from jaxarm.model import world as world_lib
 from jaxarm.testing import (
     link_segments,
     oracle_path_collides,
@@ -90,40 +91,11 @@ def test_violation_is_the_deepest_penetration_found_at_a_sample(rng):
     assert checked > 20
 
 
-@pytest.mark.parametrize("degree", [6, 8])
-def test_window_speed_bounds_hold_on_a_dense_grid(rng, degree):
-    """The window pass's bound on |theta_j'| over a window (centre velocity plus Taylor tail
-    weights) is never below the true speed."""
-    n_samples = 21
-    step = 1.0 / (n_samples - 1)
-    start, goal = rng.uniform(-3, 3, 3), rng.uniform(-3, 3, 3)
-    x = rng.uniform(-200, 200, (50, 3 * (degree - 5)))
-    samples = np.linspace(0.0, 1.0, n_samples)
-    with jax.enable_x64(True):
-        window_tails = collision.tail_weights(degree, samples, step / 2)
-        worst_ratio = 0.0
-        for s in range(n_samples):
-            centre, radius = samples[s], step / 2
-            velocity = path.joint_angle_list(start, goal, jnp.asarray(x),
-                                             path.basis_values(degree, [centre], 1), order=1)
-            bound = collision.speed_bound(start, goal, jnp.asarray(x),
-                                          [v[:, 0] for v in velocity],
-                                          jnp.asarray(window_tails[s]))
-            dense = np.linspace(centre - radius, centre + radius, 41)
-            true = path.joint_angles(start, goal, jnp.asarray(x),
-                                     path.basis_values(degree, dense, 1), order=1)
-            true = np.abs(np.asarray(true)).max(axis=1)  # (paths, joints)
-            bound = np.stack([np.asarray(b) for b in bound], axis=-1)
-            assert np.all(true <= bound * (1 + 1e-12)), s
-            worst_ratio = max(worst_ratio, float((true / bound).max()))
-    assert worst_ratio > 0.9  # and not uselessly loose
-
-
 def test_hull_separation_is_a_lower_bound_on_the_shapely_distance_of_the_hull(rng):
     """The separating-axis gap between the convex hull of four points and the nearest obstacle
     never exceeds shapely's distance, over random worlds and hulls near their obstacles, and is
     not uselessly loose: near the distance for the typical hull apart from its obstacles."""
-    ratios = []
+    ratios, exact_circles = [], 0
     for problem in random_world_problems(rng, 40, collision="certified"):
         corners = rng.uniform(-60, 60, (200, 1, 2)) + rng.normal(0, 6, (200, 4, 2))
         ours = np.asarray(collision.hull_separation(
@@ -140,16 +112,74 @@ def test_hull_separation_is_a_lower_bound_on_the_shapely_distance_of_the_hull(rn
         assert np.all(np.isinf(ours) == np.isinf(oracle))  # no obstacles
         apart = np.isfinite(oracle) & (oracle > 1e-3)
         ratios.append(ours[apart] / oracle[apart])
+        # circles alone: their gap is the exact distance where apart
+        circle_oracle = np.full(len(hulls), np.inf)
+        for center, radius in circles:
+            circle_oracle = np.minimum(circle_oracle, shapely.distance(hulls, center) - radius)
+        circle_world = problem.arrays.world._replace(
+            polygon_valid=np.zeros_like(problem.arrays.world.polygon_valid))
+        circle_gap = np.asarray(collision.hull_separation(
+            circle_world, [(jnp.asarray(corners[:, i, 0]), jnp.asarray(corners[:, i, 1]))
+                           for i in range(4)]))
+        apart = np.isfinite(circle_oracle) & (circle_oracle > 0)
+        np.testing.assert_allclose(circle_gap[apart], circle_oracle[apart], atol=2e-4)
+        exact_circles += apart.sum()
     ratio = np.concatenate(ratios)
     assert len(ratio) > 2000 and np.median(ratio) > 0.95 and np.mean(ratio > 0.5) > 0.9, (
         len(ratio), np.percentile(ratio, [10, 50]))
+    assert exact_circles > 2000
 
 
+def test_hull_separation_with_the_nearest_circle_alone_is_a_lower_bound(rng):
+    """Given the circles' distances from a set every point of the hull is within ``spread``
+    of, only the nearest circle gets separating axes: still never above shapely's distance
+    of the hull, and equal to it where the nearest circle is the only one within reach."""
+    equal = 0
+    for problem in random_world_problems(rng, 40, collision="certified"):
+        world = problem.arrays.world
+        # a link and its hull: the link's end points moved +/- their velocities
+        ends = rng.uniform(-60, 60, (200, 2, 2))
+        velocity = rng.normal(0, 1.5, (200, 2, 2))
+        corners = np.stack([ends[:, 0] - velocity[:, 0], ends[:, 0] + velocity[:, 0],
+                            ends[:, 1] + velocity[:, 1], ends[:, 1] - velocity[:, 1]], axis=1)
+        spread = np.linalg.norm(velocity, axis=-1).max(axis=1)
+        distances = world_lib.circle_slots(*(jnp.asarray(ends[:, e, c]) for e in range(2)
+                                             for c in range(2)), world)
+        ours = np.asarray(collision.hull_separation(
+            world, [(jnp.asarray(corners[:, i, 0]), jnp.asarray(corners[:, i, 1]))
+                    for i in range(4)], circle_distances=(distances, jnp.asarray(spread))))
+        full = np.asarray(collision.hull_separation(
+            world, [(jnp.asarray(corners[:, i, 0]), jnp.asarray(corners[:, i, 1]))
+                    for i in range(4)]))
+        circles, polygons = shapely_obstacles(problem.world)
+        hulls = [shapely.MultiPoint(c).convex_hull for c in corners]
+        oracle = np.full(len(hulls), np.inf)
+        for center, radius in circles:
+            oracle = np.minimum(oracle, shapely.distance(hulls, center) - radius)
+        for polygon in polygons:
+            oracle = np.minimum(oracle, shapely.distance(hulls, polygon))
+        assert np.all(ours <= np.maximum(oracle, 0.0) + 1e-3)
+        assert np.all(ours <= full + 1e-4)  # the full test is never looser
+        link_distance = np.stack([np.asarray(d) for d in distances]) if distances else None
+        if link_distance is not None and len(link_distance) > 1:
+            second = np.sort(link_distance, axis=0)[1]
+            alone = np.isfinite(oracle) & (oracle > 0) & (second - spread > full)
+            np.testing.assert_allclose(ours[alone], full[alone], atol=1e-4)
+            equal += alone.sum()
+    assert equal > 1000, equal
+
+
+def _drift(lengths, world, about_centre, radius):
+    return collision.drift_shortfalls(lengths, world, about_centre, radius)[0]
+
+
+@pytest.mark.parametrize("bound_fn", [collision.sweep_shortfalls, _drift],
+                         ids=["sweep", "drift"])
 @pytest.mark.parametrize("degree", [6, 8])
-def test_sweep_bound_holds_on_a_dense_grid(rng, degree):
+def test_piece_bounds_hold_on_a_dense_grid(rng, degree, bound_fn):
     """Over a piece ``|r - c| <= radius``, each link's distance to the nearest obstacle (shapely,
-    41 times) is at least minus its ``sweep_shortfalls`` (margin 0), and the bound proves
-    many pieces of moderate radius."""
+    41 times) is at least minus its ``sweep_shortfalls`` and its ``drift_shortfalls`` (margin
+    0), and each bound proves many pieces of moderate radius."""
     problem = random_world_problems(rng, 1, collision="certified")[0]
     start, goal = np.asarray(problem.start), np.asarray(problem.goal)
     proved = 0
@@ -161,9 +191,8 @@ def test_sweep_bound_holds_on_a_dense_grid(rng, degree):
                 [a[:, 0] / math.factorial(m) for a in path.joint_angle_list(
                     start, goal, jnp.asarray(x), path.basis_values(degree, [centre], m), order=m)]
                 for m in range(degree + 1)]
-            bound = -np.stack(collision.sweep_shortfalls(problem.arm.lengths,
-                                                         problem.arrays.world, about_centre,
-                                                         radius), axis=-1)  # (paths, links)
+            bound = -np.stack(bound_fn(problem.arm.lengths, problem.arrays.world,
+                                       about_centre, radius), axis=-1)  # (paths, links)
             dense = np.linspace(centre - radius, centre + radius, 41)
             theta = np.asarray(path.joint_angles(start, goal, jnp.asarray(x),
                                                  path.basis_values(degree, dense)))
