@@ -14,12 +14,19 @@ Three stages, all batched over paths.
    theta_i``; its velocity is ``sum_{j<=k} theta_j'(r) J (p - q_{j-1})`` (q_{j-1} joint j-1's
    position, J the 90 degree rotation), so ``|dp/dr| <= sum_{j<=k} |theta_j'(r)| R_{jk}`` with
    ``R_{jk} = l_j + ... + l_k``. If M_j bounds ``|theta_j'|`` on a window of radius rho, every
-   point of link k stays within ``delta_k = rho sum_j M_j R_{jk}`` of where it is at the centre.
-   With c_k a lower bound on link k's distance to the nearest obstacle at the centre, minus the
-   margin, ``c_k >= delta_k`` for every link proves the window free (obstacles are open sets).
-   A window's *shortfall* is ``max_k (delta_k - c_k)``. This stage uses cheap bounds
-   (``collision.window_shortfall``: a Taylor bound on the speed from precomputed tail weights,
-   the separating-axis gap for polygons) and records which windows fail as a bit mask.
+   point of link k stays within ``delta_k = rho sum_j M_j R_{jk}`` of where it is at the centre;
+   it also stays within ``rho |v| + rho^2 / 2 A_k`` (v the faster end point's velocity at the
+   centre, A_k a bound on the acceleration of the link's points), which is far smaller where
+   the joints' speeds cancel. With c_k a lower bound on link k's distance to the nearest
+   obstacle at the centre, minus the margin, ``c_k >=`` the smaller drift for every link
+   proves the window free (obstacles are open sets). A window's *shortfall* is the largest
+   excess over the links. This pass is cheap (``collision.drift_shortfalls``: no separating
+   axes per obstacle) and records which windows fail as a bit mask.
+
+   Then every failing window gets stage 2's tight test about its sample (below), batched over
+   all of them (``PIECE_CHUNK`` at a time) rather than one lane per path; those it proves fail
+   no more. Near an optimum most windows fail the drift test only because a link passes close
+   to an obstacle, moving along it, and the tight test proves most of them at once.
 
 2. **Bisection** of the failing windows of every path without a witness. Each piece is tested
    about its own centre with two bounds on every link's distance to the obstacles over the
@@ -29,8 +36,11 @@ Three stages, all batched over paths.
      the link's speed (the exact Taylor expansion of the joint speeds on the piece, from the
      path's derivatives of every order at the centre);
    - *second order* (``collision.sweep_shortfalls``): the separating-axis gap between the
-     obstacles and the convex hull of the link's end points moved along their velocities,
-     less ``radius^2 / 2`` times a bound on the acceleration of the link's points. A link
+     obstacles and the convex hull of the link's end points moved along their velocities
+     (exact for the circle nearest the link at the centre, whose axes include the one
+     through the hull's nearest corner; the other circles count their distance less the
+     hull's spread), less ``radius^2 / 2`` times a bound on the acceleration of the link's
+     points. A link
      sweeping past an obstacle at a small clearance c is proved with pieces of radius about
      ``sqrt(c)`` instead of c, so a path the swarm drives against an obstacle costs a few
      pieces instead of a number growing as ``1 / sqrt(c)``.
@@ -53,7 +63,8 @@ Three stages, all batched over paths.
    few lanes suit few paths: on CPU it has ``FEW_LANES`` lanes; on an accelerator
    ``FEW_LANES`` when at most ``FEW_PATHS`` paths need bisecting, ``LANES`` otherwise (that
    choice compiles the loop twice; it is untested on a GPU). No piece of a path is split
-   once the path has tested ``budget`` pieces (pieces that need no split are still tested),
+   once the path has tested ``budget`` pieces, counting the windows the batched test proved
+   (pieces that need no split are still tested),
    and pieces stop at ``MAX_LEVELS`` halvings; a path that needs a split past either is
    *exhausted*: neither free nor colliding, and counted (``Certificate.exhausted``).
 
@@ -113,7 +124,8 @@ class CertifiedCheck(NamedTuple):
     colliding: jax.Array  # bool: a time where a link is closer than the margin was found
     clearance: jax.Array  # cm: see ``Certificate``
     exhausted: jax.Array  # bool: the budget ran out before a verdict
-    pieces: jax.Array  # int32: pieces of windows the bisection tested (0: none needed)
+    pieces: jax.Array  # int32: pieces tested with the tight bounds: failing windows in the
+    #   batched test and pieces in the bisection (0: none needed)
 
 
 class _Motion(NamedTuple):
@@ -155,7 +167,8 @@ def _no_windows(batch: tuple, dtype, n_samples: int) -> _WindowPass:
 
 
 def _window_pass(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
-    """Stage 1 as a fold over the samples; ``finish`` returns the last ``_WindowPass``.
+    """Stage 1's drift pass as a fold over the samples; ``finish`` returns the last
+    ``_WindowPass``.
 
     The shortfalls alone: the nearest clearance at the samples comes from stage 0. With both,
     every link's distance had two consumers, and XLA's CPU backend materialised them (the
@@ -220,7 +233,8 @@ def _nearest_fold(lengths, world, x) -> path.SampleFold:
 
 def _compacted_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples,
                            margin) -> _WindowPass:
-    """Stage 1 on the paths ``open_rows[:n_open]`` only, ``WINDOW_CHUNK`` paths at a time.
+    """Stage 1 on the paths ``open_rows[:n_open]`` only, ``WINDOW_CHUNK`` paths at a time: the
+    drift pass, then the tight test of its failing windows (``_prove_windows``).
 
     Each chunk is a scan over the samples; on CPU, polygon scenes pay for each scan step
     far more than for its paths, so chunks hold 1024 paths rather than 512 (faster on
@@ -234,7 +248,7 @@ def _compacted_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples
 
     Returns:
       ``_WindowPass`` of arrays of shape (B,): the pass's values on the open rows, no failing
-      window elsewhere.
+      window elsewhere; and the windows the tight test proved per path, shape (B,), int32.
     """
     x = motion.x
     n_rows = x.shape[0]
@@ -295,8 +309,10 @@ def _prove_windows(motion: _Motion, windows: _WindowPass, tables, margin):
     """
     n_rows = windows.failing.shape[0]
     n_samples = tables.shape[0]
-    counts = jax.lax.population_count(windows.failing).astype(jnp.int32).sum(axis=1)
-    ends = jnp.cumsum(counts)  # the failing windows of row i are numbers ends[i] - counts[i] ..
+    counts = jax.lax.population_count(windows.failing).astype(jnp.int32).sum(axis=1,
+                                                                              dtype=jnp.int32)
+    # the failing windows of row i are numbers ends[i] - counts[i] .. ends[i] - 1
+    ends = jnp.cumsum(counts, dtype=jnp.int32)
     n_failing = ends[-1]
     chunk = min(PIECE_CHUNK, n_rows * n_samples)
     world = _bisection_world(motion.world)
@@ -319,9 +335,10 @@ def _prove_windows(motion: _Motion, windows: _WindowPass, tables, margin):
         # else in the same step, and XLA does not repeat the geometry per consumer.
         failing, worst = record(failing, worst, tested)
         number = first + jnp.arange(chunk, dtype=jnp.int32)
-        rows = jnp.minimum(jnp.searchsorted(ends, number, side="right"), n_rows - 1)
+        rows = jnp.minimum(jnp.searchsorted(ends, number, side="right"), n_rows - 1
+                           ).astype(jnp.int32)  # int64 with 64-bit types on: the loop carries it
         samples = _nth_set_bit(windows.failing[rows], number - (ends[rows] - counts[rows]))
-        samples = jnp.where(number < n_failing, samples, 0)
+        samples = jnp.where(number < n_failing, samples, 0).astype(jnp.int32)
         zeros = jnp.zeros_like(samples)
         shortfall = _test_pieces(motion._replace(world=world, x=motion.x[rows]),
                                  _Piece(samples, zeros, zeros), tables, step, margin).shortfall
@@ -334,7 +351,8 @@ def _prove_windows(motion: _Motion, windows: _WindowPass, tables, margin):
         lambda state: state[0] < n_failing, test_chunk,
         (jnp.int32(0), windows.failing, windows.worst_passed, nothing))
     failing, worst = record(failing, worst, tested)
-    proved = counts - jax.lax.population_count(failing).astype(jnp.int32).sum(axis=1)
+    proved = counts - jax.lax.population_count(failing).astype(jnp.int32).sum(axis=1,
+                                                                              dtype=jnp.int32)
     return windows._replace(failing=failing, worst_passed=worst), proved
 
 
