@@ -1,7 +1,6 @@
 """The certified continuous check (``jaxarm.checks.certified``, ``jaxarm.certify``) against an independent
 dense oracle (shapely, float64)."""
 
-import jax.numpy as jnp
 import numpy as np
 import pytest
 from random_worlds import thin_wall_problem
@@ -133,9 +132,8 @@ def test_small_certify_batches_share_one_program_and_agree_with_a_large_one(rng)
 
 
 def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch):
-    """The window pass over the paths without a witness at a sample, in chunks, the tight
-    test of their failing windows, in chunks, and the bisection, narrow or wide, give every
-    path the same verdict as one chunk and one loop."""
+    """The window pass over the paths without a witness at a sample, in chunks, and the
+    bisection, narrow or wide, give every path the same verdict as one chunk and one loop."""
     problem = thin_wall_problem(rng)
     arrays = problem.arrays
     x = rng.uniform(-10, 10, (200, problem.n_free)).astype(np.float32)
@@ -144,7 +142,6 @@ def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch):
     one_chunk_narrow = jaxarm.certify(problem, x)._asdict()
     one_chunk_narrow["violation"] = jaxarm.violation(problem, x)
     monkeypatch.setattr(certified, "WINDOW_CHUNK", 16)
-    monkeypatch.setattr(certified, "PIECE_CHUNK", 16)
     monkeypatch.setattr(certified, "_wide_lanes", lambda: 128)  # as on an accelerator
     monkeypatch.setattr(certified, "FEW_PATHS", -1)  # always the wide loop
     # compiled as ``certify`` is: the problem's arrays as arguments (as constants they were
@@ -247,19 +244,3 @@ def test_certified_is_the_default_and_sampled_results_say_so():
     assert ("not certified" in sampled.summary()) == (not sampled.certified)
     # a sampled answer the certified check does not prove free says so
     assert "not certified" in sampled._replace(certified=False).summary()
-
-
-def test_the_nth_set_bit_of_window_words(rng):
-    """``_nth_set_bit`` against NumPy's list of set bits, over rows with empty words between
-    set ones."""
-    bits = rng.uniform(size=(300, 101)) < rng.choice([0.02, 0.2, 0.9], size=(300, 1))
-    bits[::7, 32:64] = False  # an empty word inside a row
-    words = np.zeros((300, 4), np.uint32)
-    for b in range(101):
-        words[:, b // 32] |= bits[:, b].astype(np.uint32) << np.uint32(b % 32)
-    rows, ranks, expected = [], [], []
-    for row in range(300):
-        for rank, index in enumerate(np.nonzero(bits[row])[0]):
-            rows.append(row), ranks.append(rank), expected.append(index)
-    found = certified._nth_set_bit(jnp.asarray(words[rows]), jnp.asarray(ranks, jnp.int32))
-    np.testing.assert_array_equal(np.asarray(found), expected)

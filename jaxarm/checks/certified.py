@@ -23,11 +23,6 @@ Three stages, all batched over paths.
    excess over the links. This pass is cheap (``collision.drift_shortfalls``: no separating
    axes per obstacle) and records which windows fail as a bit mask.
 
-   Then every failing window gets stage 2's tight test about its sample (below), batched over
-   all of them (``PIECE_CHUNK`` at a time) rather than one lane per path; those it proves fail
-   no more. Near an optimum most windows fail the drift test only because a link passes close
-   to an obstacle, moving along it, and the tight test proves most of them at once.
-
 2. **Bisection** of the failing windows of every path without a witness. Each piece is tested
    about its own centre with two bounds on every link's distance to the obstacles over the
    piece, and the better of the two counts:
@@ -63,8 +58,7 @@ Three stages, all batched over paths.
    few lanes suit few paths: on CPU it has ``FEW_LANES`` lanes; on an accelerator
    ``FEW_LANES`` when at most ``FEW_PATHS`` paths need bisecting, ``LANES`` otherwise (that
    choice compiles the loop twice; it is untested on a GPU). No piece of a path is split
-   once the path has tested ``budget`` pieces, counting the windows the batched test proved
-   (pieces that need no split are still tested),
+   once the path has tested ``budget`` pieces (pieces that need no split are still tested),
    and pieces stop at ``MAX_LEVELS`` halvings; a path that needs a split past either is
    *exhausted*: neither free nor colliding, and counted (``Certificate.exhausted``).
 
@@ -110,7 +104,6 @@ MAX_LEVELS = 22  # halvings of a sample window; offsets stay exact integers in f
 LANES = 1024  # paths bisected at once on an accelerator ...
 FEW_LANES, FEW_PATHS = 64, 2048  # ... or FEW_LANES at a time when at most FEW_PATHS need it
 WINDOW_CHUNK = 1024  # paths per call of the window pass (``_compacted_window_pass``)
-PIECE_CHUNK = 4096  # windows per call of their tight test (``_prove_windows``)
 # Pieces per path: the count shares an int32 with three flags, and a path can test a few more
 # than its budget (the first piece of each failing window left, and the pending siblings).
 MAX_BUDGET = 2**27
@@ -124,8 +117,7 @@ class CertifiedCheck(NamedTuple):
     colliding: jax.Array  # bool: a time where a link is closer than the margin was found
     clearance: jax.Array  # cm: see ``Certificate``
     exhausted: jax.Array  # bool: the budget ran out before a verdict
-    pieces: jax.Array  # int32: pieces tested with the tight bounds: failing windows in the
-    #   batched test and pieces in the bisection (0: none needed)
+    pieces: jax.Array  # int32: pieces of windows the bisection tested (0: none needed)
 
 
 class _Motion(NamedTuple):
@@ -146,7 +138,6 @@ class _Work(NamedTuple):
     free_only: jax.Array  # shape=(B,), bool: stop at the first undecided piece too
     work_rows: jax.Array  # shape=(B,), int32: the rows to bisect first, then anything
     n_work: jax.Array  # shape=(), int32: how many rows need it
-    tested: jax.Array  # shape=(B,), int32: pieces already tested (``_prove_windows``)
 
 
 class _WindowPass(NamedTuple):
@@ -178,6 +169,7 @@ def _window_pass(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
     lengths, world, start, goal, x = motion
     step = 1.0 / (n_samples - 1)
     tables = jnp.asarray(_derivative_tables(degree, n_samples), x.dtype)
+    reach = jnp.asarray(step / 2 * (1.0 + 2.0**-20), x.dtype)  # widened as ``_test_pieces``'s
 
     def record(carry: _WindowPass, index) -> _WindowPass:
         failing = ~(carry.pending <= 0)  # NaN (from non-finite angles) fails too
@@ -196,8 +188,8 @@ def _window_pass(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
         # Recorded one step late: the fusion computing a sample's values then feeds nothing
         # else in the same step, and XLA does not repeat the geometry per consumer.
         carry = record(carry, sample.index - 1)
-        shortfalls, _ = collision_lib.drift_shortfalls(
-            lengths, world, about_sample, jnp.asarray(step / 2, x.dtype), margin)
+        shortfalls, _ = collision_lib.drift_shortfalls(lengths, world, about_sample, reach,
+                                                       margin)
         return carry._replace(pending=functools.reduce(jnp.maximum, shortfalls))
 
     return path.SampleFold(init=_no_windows(x.shape[:-1], x.dtype, n_samples), step=add_sample,
@@ -233,8 +225,7 @@ def _nearest_fold(lengths, world, x) -> path.SampleFold:
 
 def _compacted_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples,
                            margin) -> _WindowPass:
-    """Stage 1 on the paths ``open_rows[:n_open]`` only, ``WINDOW_CHUNK`` paths at a time: the
-    drift pass, then the tight test of its failing windows (``_prove_windows``).
+    """Stage 1 on the paths ``open_rows[:n_open]`` only, ``WINDOW_CHUNK`` paths at a time.
 
     Each chunk is a scan over the samples; on CPU, polygon scenes pay for each scan step
     far more than for its paths, so chunks hold 1024 paths rather than 512 (faster on
@@ -248,121 +239,26 @@ def _compacted_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples
 
     Returns:
       ``_WindowPass`` of arrays of shape (B,): the pass's values on the open rows, no failing
-      window elsewhere; and the windows the tight test proved per path, shape (B,), int32.
+      window elsewhere.
     """
     x = motion.x
     n_rows = x.shape[0]
     chunk = min(WINDOW_CHUNK, n_rows)
     padded = jnp.concatenate([open_rows, jnp.zeros(-n_rows % chunk, jnp.int32)])
 
-    tables = jnp.asarray(_derivative_tables(degree, n_samples), x.dtype)
-
     def pass_chunk(state):
-        first, out, charged = state
+        first, out = state
         rows = jax.lax.dynamic_slice(padded, (first,), (chunk,))
-        chunk_motion = motion._replace(x=x[rows])
-        windows = path.run_fold(_window_pass(chunk_motion, degree, n_samples, margin),
-                                motion.start, motion.goal, chunk_motion.x, degree, n_samples)
-        windows, proved = _prove_windows(chunk_motion, windows, tables, margin)
+        xs = x[rows]
+        windows = path.run_fold(_window_pass(motion._replace(x=xs), degree, n_samples, margin),
+                                motion.start, motion.goal, xs, degree, n_samples)
         target = jnp.where(first + jnp.arange(chunk) < n_open, rows, n_rows)
         out = jax.tree.map(lambda o, v: o.at[target].set(v, mode="drop"), out, windows)
-        return first + chunk, out, charged.at[target].set(proved, mode="drop")
+        return first + chunk, out
 
-    _, out, charged = jax.lax.while_loop(
-        lambda state: state[0] < n_open, pass_chunk,
-        (jnp.int32(0), _no_windows((n_rows,), x.dtype, n_samples), jnp.zeros(n_rows, jnp.int32)))
-    return out, charged
-
-
-def _nth_set_bit(words, n):
-    """Index of the set bit number ``n`` (from 0, lowest first) of each row of ``words``
-    (shape (m, n_words), uint32; bit b of word w is index 32 w + b); ``n`` of shape (m,),
-    int32, less than the row's set bits. Elementwise: a search of the words' bit counts, then
-    of halves of the word."""
-    counts = jax.lax.population_count(words).astype(jnp.int32)
-    before = jnp.cumsum(counts, axis=1) - counts  # set bits in the words before each
-    # the last word with a set bit and at most n bits before it
-    holds = (before <= n[:, None]) & (counts > 0)
-    word = jnp.max(jnp.where(holds, jnp.arange(words.shape[1], dtype=jnp.int32), 0), axis=1)
-    bits = jnp.take_along_axis(words, word[:, None], axis=1)[:, 0]
-    n = n - jnp.take_along_axis(before, word[:, None], axis=1)[:, 0]
-    position = jnp.zeros_like(n)
-    for width in (16, 8, 4, 2, 1):
-        low = jax.lax.population_count(
-            (bits >> position.astype(jnp.uint32)) & jnp.uint32((1 << width) - 1)).astype(jnp.int32)
-        past = n >= low
-        position, n = position + jnp.where(past, width, 0), n - jnp.where(past, low, 0)
-    return 32 * word + position
-
-
-def _prove_windows(motion: _Motion, windows: _WindowPass, tables, margin):
-    """Test every failing window of every path with the bisection's tight bounds at level 0,
-    ``PIECE_CHUNK`` windows at a time; those found free fail no more.
-
-    The same test the bisection would start each window with (``_test_pieces``), batched over
-    all windows instead of over one lane per path; the windows it does not prove, the
-    bisection tests again from level 0, so a path's verdict is the same.
-
-    Returns:
-      The ``_WindowPass`` without the windows proved here, and how many they were per path,
-      shape (n,), int32 (pieces tested: they count against the budget).
-    """
-    n_rows = windows.failing.shape[0]
-    n_samples = tables.shape[0]
-    counts = jax.lax.population_count(windows.failing).astype(jnp.int32).sum(axis=1,
-                                                                              dtype=jnp.int32)
-    # the failing windows of row i are numbers ends[i] - counts[i] .. ends[i] - 1
-    ends = jnp.cumsum(counts, dtype=jnp.int32)
-    n_failing = ends[-1]
-    chunk = min(PIECE_CHUNK, n_rows * n_samples)
-    world = _bisection_world(motion.world)
-    step = 1.0 / (n_samples - 1)
-
-    def record(failing, worst, tested):
-        """The windows of a tested chunk found free: their bits cleared, their shortfall
-        kept."""
-        rows, samples, shortfall = tested
-        free = shortfall <= 0
-        bit = jnp.left_shift(jnp.uint32(1), (samples & 31).astype(jnp.uint32))
-        word = jnp.where(free, rows * failing.shape[1] + (samples >> 5), failing.size)
-        # each (row, word) may lose several bits, each set: subtracting them clears them
-        failing = failing.ravel().at[word].add(-bit, mode="drop").reshape(failing.shape)
-        return failing, worst.at[jnp.where(free, rows, n_rows)].max(shortfall, mode="drop")
-
-    def test_chunk(state):
-        first, failing, worst, tested = state
-        # Recorded one step late: the fusion computing a chunk's shortfall then feeds nothing
-        # else in the same step, and XLA does not repeat the geometry per consumer.
-        failing, worst = record(failing, worst, tested)
-        number = first + jnp.arange(chunk, dtype=jnp.int32)
-        rows = jnp.minimum(jnp.searchsorted(ends, number, side="right"), n_rows - 1
-                           ).astype(jnp.int32)  # int64 with 64-bit types on: the loop carries it
-        samples = _nth_set_bit(windows.failing[rows], number - (ends[rows] - counts[rows]))
-        samples = jnp.where(number < n_failing, samples, 0).astype(jnp.int32)
-        zeros = jnp.zeros_like(samples)
-        shortfall = _test_pieces(motion._replace(world=world, x=motion.x[rows]),
-                                 _Piece(samples, zeros, zeros), tables, step, margin).shortfall
-        return first + chunk, failing, worst, (
-            rows, samples, jnp.where(number < n_failing, shortfall, jnp.inf))
-
-    nothing = (jnp.zeros(chunk, jnp.int32), jnp.zeros(chunk, jnp.int32),
-               jnp.full(chunk, jnp.inf, windows.worst_passed.dtype))
-    _, failing, worst, tested = jax.lax.while_loop(
-        lambda state: state[0] < n_failing, test_chunk,
-        (jnp.int32(0), windows.failing, windows.worst_passed, nothing))
-    failing, worst = record(failing, worst, tested)
-    proved = counts - jax.lax.population_count(failing).astype(jnp.int32).sum(axis=1,
-                                                                              dtype=jnp.int32)
-    return windows._replace(failing=failing, worst_passed=worst), proved
-
-
-def _bisection_world(world: world_lib.WorldArrays) -> world_lib.WorldArrays:
-    """The world as the piece tests read it: with one polygon slot the minimum over the slots
-    is no reduction at all, and XLA then repeated a piece's geometry in each of the ~16
-    fusions that read its result. An empty second slot keeps it in one
-    (benchmarks/RESULTS.md, Decisions and negative results, "The certified bisection computes
-    each piece once")."""
-    return world_lib.pad_polygon_slots(world, 2) if world.vertices.shape[0] == 1 else world
+    _, out = jax.lax.while_loop(lambda state: state[0] < n_open, pass_chunk,
+                                (jnp.int32(0), _no_windows((n_rows,), x.dtype, n_samples)))
+    return out
 
 
 def _derivative_tables(degree: int, n_samples: int) -> np.ndarray:
@@ -424,13 +320,6 @@ def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin):
         for term in reversed(terms[:-1]):  # Horner in the shift
             value = [t + shift * v for t, v in zip(term, value)]
         about_centre.append(value)
-    return _bound_piece(lengths, world, about_centre, radius, margin)
-
-
-def _bound_piece(lengths, world, about_centre: list, radius, margin) -> _PieceTest:
-    """``_PieceTest`` of the pieces ``|r - c| <= radius`` from their paths' Taylor coefficients
-    about c (``about_centre[m][j] = theta_j^(m)(c) / m!``, each of shape (n,))."""
-    degree, n_joints = len(about_centre) - 1, len(about_centre[0])
     # Widened by a few float32 ulps: the centre and radius are rounded once each.
     reach_radius = radius * (1.0 + 2.0**-20)
     speed = [sum(m * jnp.abs(about_centre[m][j]) * reach_radius ** (m - 1)
@@ -441,7 +330,7 @@ def _bound_piece(lengths, world, about_centre: list, radius, margin) -> _PieceTe
     largest = functools.partial(functools.reduce, jnp.maximum)
     return _PieceTest(shortfall=largest([jnp.minimum(a, b) for a, b in zip(first, second)]),
                       first_order=largest(first), second_order=largest(second),
-                      nearest=nearest, radius=jnp.broadcast_to(radius, nearest.shape))
+                      nearest=nearest, radius=radius)
 
 
 class _Verdict(NamedTuple):
@@ -517,10 +406,14 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
       ``_Verdict`` of arrays of shape (B,) (meaningful on the work rows).
     """
     lengths, world, start, goal, x = motion
-    failing_words, first_window, free_only, work_rows, n_work, tested_before = work
+    failing_words, first_window, free_only, work_rows, n_work = work
     n_rows, dtype = x.shape[0], x.dtype
     n_samples = tables.shape[0]
-    world = _bisection_world(world)
+    # With one polygon slot the minimum over the slots is no reduction at all, and XLA then
+    # repeated a piece's geometry in each of the ~16 fusions that read its result. An empty
+    # second slot keeps it in one (benchmarks/RESULTS.md, Decisions and negative results, "The
+    # certified bisection computes each piece once").
+    world = world_lib.pad_polygon_slots(world, 2) if world.vertices.shape[0] == 1 else world
 
     def refill(lanes: _Lanes, next_item):
         """Give idle lanes the next paths of the work list."""
@@ -537,7 +430,7 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
         piece = _Piece(sample=jnp.where(take, first, lanes.piece.sample),
                        level=jnp.where(take, 0, lanes.piece.level),
                        offset=jnp.where(take, 0, lanes.piece.offset))
-        fresh = _empty_verdict(take.shape, dtype)._replace(flags=tested_before[row] << 3)
+        fresh = _empty_verdict(take.shape, dtype)
         verdict = jax.tree.map(lambda new, old: jnp.where(take, new, old), fresh, lanes.verdict)
         lanes = _Lanes(row=row, active=lanes.active | take,
                        x=jnp.where(take[:, None], x[row], lanes.x), windows=windows, piece=piece,
@@ -667,16 +560,15 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None,
     sample_witness = ~(nearest >= 0)
     unproved = ~sample_witness & (False if prove is None else ~prove)
     open_ = ~sample_witness & ~unproved
-    windows, tested = _compacted_window_pass(
-        motion, jnp.argsort(~open_, stable=True).astype(jnp.int32), open_.sum(dtype=jnp.int32),
-        degree, n_samples, margin)
+    windows = _compacted_window_pass(motion, jnp.argsort(~open_, stable=True).astype(jnp.int32),
+                                     open_.sum(dtype=jnp.int32), degree, n_samples, margin)
     needs_work = open_ & (windows.failing != 0).any(axis=1)
 
     work_rows = jnp.argsort(~needs_work, stable=True).astype(jnp.int32)
     n_work = needs_work.sum(dtype=jnp.int32)
     stop_early = jnp.zeros(x.shape[:1], bool) if free_only is None else free_only
     bisect = functools.partial(
-        _bisect, motion, _Work(windows.failing, closest, stop_early, work_rows, n_work, tested),
+        _bisect, motion, _Work(windows.failing, closest, stop_early, work_rows, n_work),
         jnp.asarray(_derivative_tables(degree, n_samples), dtype), step, tol, margin, budget)
     few, many = min(FEW_LANES, x.shape[0]), min(_wide_lanes(), x.shape[0])
     if few == many:
@@ -696,4 +588,4 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None,
     clearance = jnp.where(free, margin + proved, seen)
     return CertifiedCheck(violation=violation, free=free, colliding=colliding,
                           clearance=clearance, exhausted=exhausted,
-                          pieces=jnp.where(needs_work, out.tested, tested))
+                          pieces=jnp.where(needs_work, out.tested, 0))
