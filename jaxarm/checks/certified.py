@@ -32,9 +32,10 @@ Three stages, all batched over paths.
      path's derivatives of every order at the centre);
    - *second order* (``collision.sweep_shortfalls``): the separating-axis gap between the
      obstacles and the convex hull of the link's end points moved along their velocities
-     (exact for the circle nearest the link at the centre, whose axes include the one
-     through the hull's nearest corner; the other circles count their distance less the
-     hull's spread), less ``radius^2 / 2`` times a bound on the acceleration of the link's
+     (the hull's exact distance from the circle nearest the link at the centre, when apart:
+     its axes include the one through the hull's nearest corner; the other circles count
+     their distance less the hull's spread), less ``radius^2 / 2`` times a bound on the
+     acceleration of the link's
      points. A link
      sweeping past an obstacle at a small clearance c is proved with pieces of radius about
      ``sqrt(c)`` instead of c, so a path the swarm drives against an obstacle costs a few

@@ -214,8 +214,8 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0,
     a point's velocity is between its link's end points'; ``A_k``: ``_LinkMotion``). The
     second holds where the joints' speeds cancel (an elbow turning against the shoulder),
     which the first, a sum of magnitudes, does not see. Cheaper than ``sweep_shortfalls``
-    (no separating axes per obstacle), and never tighter than it: the hull it measures lies
-    within the second drift of the link at c.
+    (no separating axes per obstacle) and usually looser, not always: its first bound has no
+    acceleration term.
     """
     degree, n_joints = len(about_centre) - 1, len(about_centre[0])
     speed = [sum(m * jnp.abs(about_centre[m][j]) * radius ** (m - 1)
@@ -285,7 +285,9 @@ def hull_separation(world, corners: list, circle_distances=None):
 
     The largest gap between the projections of the hull and of an obstacle on a few axes
     (separating axes): the normals of the six segments between the corners (every hull edge is
-    one of them) and, for polygons, their edge normals. A gap on any axis is at most the
+    one of them), for circles the axis from the centre through the nearest corner (with it, a
+    circle's gap is its exact distance from the hull when apart), and for polygons their edge
+    normals. A gap on any axis is at most the
     distance (where the sets overlap, every axis's overlap is at least the smallest
     translation that parts them), and on the axis normal to the hull edge facing an obstacle
     it is the distance: the case of a link sweeping past an obstacle. Near a corner of both it
@@ -367,10 +369,10 @@ def _circle_gap(px, py, radius, axes: list, corners: list):
         nearer = d2 < closest
         nx, ny, closest = (jnp.where(nearer, dx, nx), jnp.where(nearer, dy, ny),
                            jnp.minimum(d2, closest))
-    # a corner at the centre gives the zero axis: gap -radius, still a lower bound
+    # a corner at the centre (no axis): the hull holds the centre, no gap on this axis
     length = jnp.sqrt(jnp.maximum(closest, jnp.finfo(closest.dtype).tiny))
-    gaps.append(functools.reduce(jnp.minimum, [nx * dx + ny * dy for dx, dy in offsets])
-                / length)
+    gaps.append(jnp.where(closest > 0, functools.reduce(
+        jnp.minimum, [nx * dx + ny * dy for dx, dy in offsets]) / length, -jnp.inf))
     return functools.reduce(jnp.maximum, gaps) - radius
 
 
