@@ -91,6 +91,25 @@ def test_violation_is_the_deepest_penetration_found_at_a_sample(rng):
     assert checked > 20
 
 
+def _corner_list(corners):
+    """Corners of shape (n, 4, 2) as ``hull_separation`` takes them: four (x, y) pairs."""
+    return [(jnp.asarray(corners[:, i, 0]), jnp.asarray(corners[:, i, 1])) for i in range(4)]
+
+
+def _shapely_hull_gaps(world, corners):
+    """Shapely's signed distance of each hull of four corners (n, 4, 2) from the nearest
+    obstacle, and from the nearest circle alone; each of shape (n,)."""
+    circles, polygons = shapely_obstacles(world)
+    hulls = [shapely.MultiPoint(c).convex_hull for c in corners]
+    circle_gap = np.full(len(hulls), np.inf)
+    for center, radius in circles:
+        circle_gap = np.minimum(circle_gap, shapely.distance(hulls, center) - radius)
+    gap = circle_gap
+    for polygon in polygons:
+        gap = np.minimum(gap, shapely.distance(hulls, polygon))
+    return gap, circle_gap
+
+
 def test_hull_separation_is_a_lower_bound_on_the_shapely_distance_of_the_hull(rng):
     """The separating-axis gap between the convex hull of four points and the nearest obstacle
     never exceeds shapely's distance, over random worlds and hulls near their obstacles, and is
@@ -98,29 +117,17 @@ def test_hull_separation_is_a_lower_bound_on_the_shapely_distance_of_the_hull(rn
     ratios, exact_circles = [], 0
     for problem in random_world_problems(rng, 40, collision="certified"):
         corners = rng.uniform(-60, 60, (200, 1, 2)) + rng.normal(0, 6, (200, 4, 2))
-        ours = np.asarray(collision.hull_separation(
-            problem.arrays.world, [(jnp.asarray(corners[:, i, 0]), jnp.asarray(corners[:, i, 1]))
-                                   for i in range(4)]))
-        circles, polygons = shapely_obstacles(problem.world)
-        hulls = [shapely.MultiPoint(c).convex_hull for c in corners]
-        oracle = np.full(len(hulls), np.inf)
-        for center, radius in circles:
-            oracle = np.minimum(oracle, shapely.distance(hulls, center) - radius)
-        for polygon in polygons:
-            oracle = np.minimum(oracle, shapely.distance(hulls, polygon))
+        ours = np.asarray(collision.hull_separation(problem.arrays.world,
+                                                    _corner_list(corners)))
+        oracle, circle_oracle = _shapely_hull_gaps(problem.world, corners)
         assert np.all(ours <= np.maximum(oracle, 0.0) + 1e-3)
         assert np.all(np.isinf(ours) == np.isinf(oracle))  # no obstacles
         apart = np.isfinite(oracle) & (oracle > 1e-3)
         ratios.append(ours[apart] / oracle[apart])
         # circles alone: their gap is the exact distance where apart
-        circle_oracle = np.full(len(hulls), np.inf)
-        for center, radius in circles:
-            circle_oracle = np.minimum(circle_oracle, shapely.distance(hulls, center) - radius)
         circle_world = problem.arrays.world._replace(
             polygon_valid=np.zeros_like(problem.arrays.world.polygon_valid))
-        circle_gap = np.asarray(collision.hull_separation(
-            circle_world, [(jnp.asarray(corners[:, i, 0]), jnp.asarray(corners[:, i, 1]))
-                           for i in range(4)]))
+        circle_gap = np.asarray(collision.hull_separation(circle_world, _corner_list(corners)))
         apart = np.isfinite(circle_oracle) & (circle_oracle > 0)
         np.testing.assert_allclose(circle_gap[apart], circle_oracle[apart], atol=2e-4)
         exact_circles += apart.sum()
@@ -146,18 +153,9 @@ def test_hull_separation_with_the_nearest_circle_alone_is_a_lower_bound(rng):
         distances = world_lib.circle_slots(*(jnp.asarray(ends[:, e, c]) for e in range(2)
                                              for c in range(2)), world)
         ours = np.asarray(collision.hull_separation(
-            world, [(jnp.asarray(corners[:, i, 0]), jnp.asarray(corners[:, i, 1]))
-                    for i in range(4)], circle_distances=(distances, jnp.asarray(spread))))
-        full = np.asarray(collision.hull_separation(
-            world, [(jnp.asarray(corners[:, i, 0]), jnp.asarray(corners[:, i, 1]))
-                    for i in range(4)]))
-        circles, polygons = shapely_obstacles(problem.world)
-        hulls = [shapely.MultiPoint(c).convex_hull for c in corners]
-        oracle = np.full(len(hulls), np.inf)
-        for center, radius in circles:
-            oracle = np.minimum(oracle, shapely.distance(hulls, center) - radius)
-        for polygon in polygons:
-            oracle = np.minimum(oracle, shapely.distance(hulls, polygon))
+            world, _corner_list(corners), circle_distances=(distances, jnp.asarray(spread))))
+        full = np.asarray(collision.hull_separation(world, _corner_list(corners)))
+        oracle, _ = _shapely_hull_gaps(problem.world, corners)
         assert np.all(ours <= np.maximum(oracle, 0.0) + 1e-3)
         apart = np.isfinite(oracle) & (oracle > 0)
         assert np.all(ours[apart] <= full[apart] + 1e-4)  # the full test is never looser
@@ -177,11 +175,7 @@ def test_hull_separation_with_the_nearest_circle_alone_is_a_lower_bound(rng):
         circle_distances=([jnp.ones(2)] * len(distances), nan)))))
 
 
-def _drift(lengths, world, about_centre, radius):
-    return collision.drift_shortfalls(lengths, world, about_centre, radius)[0]
-
-
-@pytest.mark.parametrize("bound_fn", [collision.sweep_shortfalls, _drift],
+@pytest.mark.parametrize("bound_fn", [collision.sweep_shortfalls, collision.drift_shortfalls],
                          ids=["sweep", "drift"])
 @pytest.mark.parametrize("degree", [6, 8])
 def test_piece_bounds_hold_on_a_dense_grid(rng, degree, bound_fn):

@@ -189,8 +189,7 @@ def _window_pass(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
         # Recorded one step late: the fusion computing a sample's values then feeds nothing
         # else in the same step, and XLA does not repeat the geometry per consumer.
         carry = record(carry, sample.index - 1)
-        shortfalls, _ = collision_lib.drift_shortfalls(lengths, world, about_sample, reach,
-                                                       margin)
+        shortfalls = collision_lib.drift_shortfalls(lengths, world, about_sample, reach, margin)
         return carry._replace(pending=functools.reduce(jnp.maximum, shortfalls))
 
     return path.SampleFold(init=_no_windows(x.shape[:-1], x.dtype, n_samples), step=add_sample,
@@ -323,8 +322,8 @@ def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin):
         about_centre.append(value)
     # Widened by a few float32 ulps: the centre and radius are rounded once each.
     reach_radius = radius * (1.0 + 2.0**-20)
-    speed = [sum(m * jnp.abs(about_centre[m][j]) * reach_radius ** (m - 1)
-                 for m in range(1, degree + 1)) for j in range(n_joints)]
+    speed = [collision_lib.taylor_speed_bound([order[j] for order in about_centre], reach_radius)
+             for j in range(n_joints)]
     first, nearest = collision_lib.link_shortfalls(lengths, world, about_centre[0], speed,
                                                     reach_radius, margin, exact=True)
     second = collision_lib.sweep_shortfalls(lengths, world, about_centre, reach_radius, margin)

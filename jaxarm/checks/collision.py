@@ -158,6 +158,15 @@ def link_shortfalls(lengths, world, theta: list, speed: list, radius, margin=0.0
     return shortfalls, functools.reduce(jnp.minimum, bounds)
 
 
+def taylor_speed_bound(coefficients: list, radius):
+    """A bound on ``|f'(r)|`` for ``|r - c| <= radius``, from a polynomial's Taylor
+    coefficients about c (``coefficients[m] = f^(m)(c) / m!``, each of shape (...,)):
+    ``sum_m m |coefficients[m]| radius^(m - 1)``, the triangle inequality on its exact
+    expansion."""
+    return sum(m * jnp.abs(coefficients[m]) * radius ** (m - 1)
+               for m in range(1, len(coefficients)))
+
+
 class _LinkMotion(NamedTuple):
     """One link over a piece ``|r - c| <= radius``: its end points and their velocities at c
     (cm, cm per unit r; each of shape (...,)), and a bound on the acceleration of any of its
@@ -168,6 +177,13 @@ class _LinkMotion(NamedTuple):
     near_velocity: tuple
     far_velocity: tuple
     acceleration: jax.Array  # >= |X''(r)| for every point X of the link, |r - c| <= radius
+
+    @property
+    def top_speed(self) -> jax.Array:
+        """The faster end point's speed at c: every point of the link moves no faster than
+        (a point's velocity lies between its link's end points')."""
+        return jnp.sqrt(jnp.maximum(sum(v * v for v in self.near_velocity),
+                                    sum(v * v for v in self.far_velocity)))
 
 
 def _link_motions(lengths, about_centre: list, radius) -> list:
@@ -186,7 +202,7 @@ def _link_motions(lengths, about_centre: list, radius) -> list:
     acceleration = 0.0
     motions = []
     for k in range(len(phi[0])):
-        rate = sum(m * jnp.abs(phi[m][k]) * radius ** (m - 1) for m in range(1, degree + 1))
+        rate = taylor_speed_bound([order[k] for order in phi], radius)
         turn = sum(m * (m - 1) * jnp.abs(phi[m][k]) * radius ** (m - 2)
                    for m in range(2, degree + 1))
         acceleration = acceleration + lengths[k] * (turn + rate * rate)
@@ -201,11 +217,10 @@ def _link_motions(lengths, about_centre: list, radius) -> list:
 
 
 def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0,
-                     exact: bool = False):
+                     exact: bool = False) -> list:
     """Per link, how far the piece ``|r - c| <= radius`` is from certified by how far its
-    points can drift from where they are at c (cm; <= 0 proves the link clear), and the
-    nearest link's clearance bound at c: ``([d_k - (c_k - margin) for each link k],
-    min_k c_k)``.
+    points can drift from where they are at c (cm; <= 0 proves the link clear):
+    ``[d_k - (c_k - margin) for each link k]``.
 
     ``c_k`` is ``posture_clearance_bound``'s at the centre, ``d_k`` the smaller of two bounds
     on how far any point of link k moves over the piece: ``radius sum_{j<=k} M_j R_{jk}``
@@ -214,23 +229,20 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0,
     a point's velocity is between its link's end points'; ``A_k``: ``_LinkMotion``). The
     second holds where the joints' speeds cancel (an elbow turning against the shoulder),
     which the first, a sum of magnitudes, does not see. Cheaper than ``sweep_shortfalls``
-    (no separating axes per obstacle) and usually looser, not always: its first bound has no
+    (no separating axes per obstacle), and not always looser than it: its first bound has no
     acceleration term.
     """
-    degree, n_joints = len(about_centre) - 1, len(about_centre[0])
-    speed = [sum(m * jnp.abs(about_centre[m][j]) * radius ** (m - 1)
-                 for m in range(1, degree + 1)) for j in range(n_joints)]
+    speed = [taylor_speed_bound([order[j] for order in about_centre], radius)
+             for j in range(len(about_centre[0]))]
     reach = reach_matrix(jnp.asarray(lengths, dtype=about_centre[0][0].dtype))
     bounds = posture_clearance_bound(lengths, world, about_centre[0], exact)
     shortfalls = []
     for k, (motion, bound) in enumerate(zip(_link_motions(lengths, about_centre, radius),
                                             bounds)):
         swing = radius * sum(speed[j] * reach[j, k] for j in range(k + 1))
-        fastest = jnp.sqrt(jnp.maximum(sum(v * v for v in motion.near_velocity),
-                                       sum(v * v for v in motion.far_velocity)))
-        drift = radius * fastest + 0.5 * radius * radius * motion.acceleration
+        drift = radius * motion.top_speed + 0.5 * radius * radius * motion.acceleration
         shortfalls.append(jnp.minimum(swing, drift) - (bound - margin))
-    return shortfalls, functools.reduce(jnp.minimum, bounds)
+    return shortfalls
 
 
 def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> list:
@@ -263,8 +275,7 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
         (x, y), (next_x, next_y) = motion.near, motion.far
         (vx, vy), (next_vx, next_vy) = motion.near_velocity, motion.far_velocity
         # the hull lies within this distance of the link at the centre (``drift_shortfalls``)
-        spread = radius * jnp.sqrt(jnp.maximum(vx * vx + vy * vy,
-                                               next_vx * next_vx + next_vy * next_vy))
+        spread = radius * motion.top_speed
         hull = hull_separation(world, [
             (x - radius * vx, y - radius * vy), (x + radius * vx, y + radius * vy),
             (next_x + radius * next_vx, next_y + radius * next_vy),
