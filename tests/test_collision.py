@@ -1,6 +1,7 @@
 """The sampled check and the window bounds (``jaxarm.checks.collision``) against shapely and dense
 grids."""
 
+import functools
 import math
 
 import jax
@@ -135,6 +136,41 @@ def test_hull_separation_is_a_lower_bound_on_the_shapely_distance_of_the_hull(rn
     assert len(ratio) > 2000 and np.median(ratio) > 0.95 and np.mean(ratio > 0.5) > 0.9, (
         len(ratio), np.percentile(ratio, [10, 50]))
     assert exact_circles > 2000
+
+
+def test_circle_sweep_gaps_are_lower_bounds_on_the_hull_distance_and_exact_at_rest(rng):
+    """A sweep's gap from every circle (``world.circle_sweep_gaps``: the axis through the
+    segment's nearest point) never exceeds shapely's distance of the hull of the four moved
+    end points; at rest it is the segment's exact distance (``circle_slots``); and it is near
+    the hull's distance, nearer still for a segment sliding along itself."""
+    ratios = {False: [], True: []}
+    for problem in random_world_problems(rng, 40, collision="certified"):
+        world, n = problem.arrays.world, 200
+        start = rng.uniform(-60, 60, (n, 2))
+        end = start + rng.normal(0, 15, (n, 2))
+        link = [jnp.asarray(a, jnp.float32) for a in (*start.T, *end.T)]
+        nearest = lambda gaps: np.asarray(functools.reduce(  # noqa: E731
+            jnp.minimum, gaps, jnp.full(n, jnp.inf)))
+        at_rest = world_lib.Sweep(*(jnp.zeros(n, jnp.float32),) * 4)
+        np.testing.assert_allclose(nearest(world_lib.circle_sweep_gaps(*link, at_rest, world)),
+                                   nearest(world_lib.circle_slots(*link, world)),
+                                   atol=1e-4, rtol=3e-5)  # float32: projections of ~60 cm
+        for sliding in (False, True):
+            if sliding:
+                along = (end - start) / np.linalg.norm(end - start, axis=1, keepdims=True)
+                u, w = along * rng.normal(0, 3, (n, 1)), along * rng.normal(0, 3, (n, 1))
+            else:
+                u, w = rng.normal(0, 3, (n, 2)), rng.normal(0, 3, (n, 2))
+            sweep = world_lib.Sweep(*(jnp.asarray(a, jnp.float32) for a in (*u.T, *w.T)))
+            ours = nearest(world_lib.circle_sweep_gaps(*link, sweep, world))
+            corners = np.stack([start - u, start + u, end + w, end - w], axis=1)
+            _, oracle = _shapely_hull_gaps(problem.world, corners)
+            assert np.all(ours <= np.maximum(oracle, 0.0) + 1e-3)
+            apart = np.isfinite(oracle) & (oracle > 1e-3)
+            ratios[sliding].append(ours[apart] / oracle[apart])
+    moving, sliding = (np.concatenate(ratios[key]) for key in (False, True))
+    assert len(moving) > 2000 and np.median(moving) > 0.95, np.percentile(moving, [10, 50])
+    assert len(sliding) > 2000 and np.percentile(sliding, 10) > 0.95
 
 
 def test_hull_separation_with_the_nearest_circle_alone_is_a_lower_bound(rng):

@@ -15,13 +15,15 @@ Three stages, all batched over paths.
    position, J the 90 degree rotation), so ``|dp/dr| <= sum_{j<=k} |theta_j'(r)| R_{jk}`` with
    ``R_{jk} = l_j + ... + l_k``. If M_j bounds ``|theta_j'|`` on a window of radius rho, every
    point of link k stays within ``delta_k = rho sum_j M_j R_{jk}`` of where it is at the centre;
-   it also stays within ``rho |v| + rho^2 / 2 A_k`` (v the faster end point's velocity at the
-   centre, A_k a bound on the acceleration of the link's points), which is far smaller where
-   the joints' speeds cancel. With c_k a lower bound on link k's distance to the nearest
-   obstacle at the centre, minus the margin, ``c_k >=`` the smaller drift for every link
-   proves the window free (obstacles are open sets). A window's *shortfall* is the largest
-   excess over the links. This pass is cheap (``collision.drift_shortfalls``: no separating
-   axes per obstacle) and records which windows fail as a bit mask.
+   with c_k a lower bound on link k's distance to the nearest obstacle at the centre, ``c_k -
+   margin >= delta_k`` proves it clear over the window (obstacles are open sets). A second
+   bound sees the direction of the motion: the link moves as its linear part (its end points
+   along their velocities) plus at most ``rho^2 / 2 A_k`` (A_k bounds the acceleration of its
+   points), and against a circle only the linear part's speed towards the circle counts (so a
+   link sliding along an obstacle, the swarm's typical grazing path, loses little). Either
+   bound proves a link; a window's *shortfall* is the largest excess over the links. This pass
+   is cheap (``collision.drift_shortfalls``: no separating axes of the swept hull) and records
+   which windows fail as a bit mask.
 
 2. **Bisection** of the failing windows of every path without a witness. Each piece is tested
    about its own centre with two bounds on every link's distance to the obstacles over the

@@ -89,7 +89,11 @@ def posture_clearance_bound(lengths, world, theta: list, exact: bool = False) ->
 
     Args:
       theta: per-joint angles, each of shape (...,).
-      exact: exact distances, or the cheaper bound (``world.separation_parts``).
+      exact: exact distances (``world.separation_parts``, polygon slots as an array axis:
+        written out slot by slot, the certified bisection took far longer to compile), or the
+        cheaper bound, polygons slot by slot (``world.polygon_slots``: with the slots as an
+        axis, the certified check's samples and windows ran far slower on polygon scenes;
+        ``benchmarks/RESULTS.md``, *Decisions and negative results*, "Polygons slot by slot").
 
     Returns:
       A list of n_joints arrays of shape (...,); negative values are minus a penetration
@@ -97,12 +101,23 @@ def posture_clearance_bound(lengths, world, theta: list, exact: bool = False) ->
     """
     bounds = []
     for link in link_endpoints(lengths, theta):
-        parts = world_lib.separation_parts(*link, world, exact)
-        nearest = functools.reduce(jnp.minimum, parts.circles, jnp.full_like(theta[0], jnp.inf))
-        if parts.polygons is not None:
-            nearest = jnp.minimum(nearest, parts.polygons.min(axis=0))
-        bounds.append(nearest)
+        nearest = jnp.full_like(theta[0], jnp.inf)
+        if exact:
+            parts = world_lib.separation_parts(*link, world)
+            separations = parts.circles
+            if parts.polygons is not None:
+                nearest = parts.polygons.min(axis=0)
+        else:
+            separations = sum(_separation_bounds(link, world), [])
+        bounds.append(functools.reduce(jnp.minimum, separations, nearest))
     return bounds
+
+
+def _separation_bounds(link: tuple, world) -> tuple[list, list]:
+    """One link's (end points') exact distance from every circle slot and separating-axis gap
+    from every polygon slot, slot by slot: two lists of arrays of shape (...,)."""
+    return (world_lib.circle_slots(*link, world),
+            world_lib.polygon_slots(*link, world, exact=False))
 
 
 def sampled_fold(lengths, world, x, n_samples: int, margin=0.0,
@@ -216,32 +231,43 @@ def _link_motions(lengths, about_centre: list, radius) -> list:
     return motions
 
 
-def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0,
-                     exact: bool = False) -> list:
-    """Per link, how far the piece ``|r - c| <= radius`` is from certified by how far its
-    points can drift from where they are at c (cm; <= 0 proves the link clear):
-    ``[d_k - (c_k - margin) for each link k]``.
+def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> list:
+    """Per link, how far the piece ``|r - c| <= radius`` is from certified by two cheap bounds
+    (cm; <= 0 proves the link clear): ``[min(s_k - (c_k - margin), e_k - (g_k - margin)) for
+    each link k]``.
 
-    ``c_k`` is ``posture_clearance_bound``'s at the centre, ``d_k`` the smaller of two bounds
-    on how far any point of link k moves over the piece: ``radius sum_{j<=k} M_j R_{jk}``
-    (``M_j`` bounds ``|theta_j'|`` there, from the exact Taylor expansion; ``reach_matrix``),
-    and ``radius * max(|v_near|, |v_far|) + radius^2 / 2 * A_k`` (the end points' speeds at c:
-    a point's velocity is between its link's end points'; ``A_k``: ``_LinkMotion``). The
-    second holds where the joints' speeds cancel (an elbow turning against the shoulder),
-    which the first, a sum of magnitudes, does not see. Cheaper than ``sweep_shortfalls``
-    (no separating axes per obstacle), and not always looser than it: its first bound has no
-    acceleration term.
+    - *Swing*: ``c_k`` is ``posture_clearance_bound``'s at the centre (the cheaper bound),
+      ``s_k = radius sum_{j<=k} M_j R_{jk}`` how far any point of link k can move (``M_j``
+      bounds ``|theta_j'|`` there, from the exact Taylor expansion; ``reach_matrix``).
+    - *Drift along each circle's axis*: the link moves as its linear part plus at most
+      ``e_k = radius^2 / 2 * A_k`` (``sweep_shortfalls``), and the linear part stays in the
+      hull of its end points moved by ``+/- radius`` times their velocities; ``g_k`` is that
+      hull's gap from every circle on the axis through the link's nearest point at the
+      centre (``world.circle_sweep_gaps``: a link sliding along a circle loses only its speed
+      towards it, where the swing, a sum of magnitudes, loses all of it), and from every
+      polygon its gap at the centre less ``radius`` times the faster end's speed
+      (``_LinkMotion.top_speed``; the same on the polygons' own axes ran far slower).
+      Cheaper than ``sweep_shortfalls`` (no axes of the hull's own edges), which the
+      bisection then uses on what fails here.
     """
     speed = [taylor_speed_bound([order[j] for order in about_centre], radius)
              for j in range(len(about_centre[0]))]
     reach = reach_matrix(jnp.asarray(lengths, dtype=about_centre[0][0].dtype))
-    bounds = posture_clearance_bound(lengths, world, about_centre[0], exact)
     shortfalls = []
-    for k, (motion, bound) in enumerate(zip(_link_motions(lengths, about_centre, radius),
-                                            bounds)):
+    for k, motion in enumerate(_link_motions(lengths, about_centre, radius)):
+        link = (*motion.near, *motion.far)
+        circles, polygons = _separation_bounds(link, world)
+        clearance = functools.reduce(jnp.minimum, circles + polygons,
+                                     jnp.full_like(link[0], jnp.inf))
         swing = radius * sum(speed[j] * reach[j, k] for j in range(k + 1))
-        drift = radius * motion.top_speed + 0.5 * radius * radius * motion.acceleration
-        shortfalls.append(jnp.minimum(swing, drift) - (bound - margin))
+        sweep = world_lib.Sweep(*(radius * v for v in motion.near_velocity + motion.far_velocity))
+        spread = radius * motion.top_speed
+        swept = functools.reduce(jnp.minimum, world_lib.circle_sweep_gaps(*link, sweep, world)
+                                 + [gap - spread for gap in polygons],
+                                 jnp.full_like(link[0], jnp.inf))
+        shortfalls.append(jnp.minimum(
+            swing - (clearance - margin),
+            0.5 * radius * radius * motion.acceleration - (swept - margin)))
     return shortfalls
 
 
@@ -274,7 +300,7 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     for motion in _link_motions(lengths, about_centre, radius):
         (x, y), (next_x, next_y) = motion.near, motion.far
         (vx, vy), (next_vx, next_vy) = motion.near_velocity, motion.far_velocity
-        # the hull lies within this distance of the link at the centre (``drift_shortfalls``)
+        # the hull lies within this distance of the link at the centre (``top_speed``)
         spread = radius * motion.top_speed
         hull = hull_separation(world, [
             (x - radius * vx, y - radius * vy), (x + radius * vx, y + radius * vy),

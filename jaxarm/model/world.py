@@ -237,15 +237,57 @@ def _on_end_points(kernel, start, end, world):
     return jnp.moveaxis(kernel(*coordinates, world), 0, -1)
 
 
-def point_segment_distance(px, py, ax, ay, bx, by):
-    """Distance from points (px, py) to segments (a, b); all arguments broadcast together."""
+def _from_segment(px, py, ax, ay, bx, by):
+    """The vector from the nearest point of segments (a, b) to points (px, py)."""
     dx, dy = bx - ax, by - ay
     t = ((px - ax) * dx + (py - ay) * dy) / jnp.maximum(dx * dx + dy * dy, _TINY)
     t = jnp.clip(t, 0.0, 1.0)
-    ox, oy = px - ax - t * dx, py - ay - t * dy
+    return px - ax - t * dx, py - ay - t * dy
+
+
+def point_segment_distance(px, py, ax, ay, bx, by):
+    """Distance from points (px, py) to segments (a, b); all arguments broadcast together."""
+    ox, oy = _from_segment(px, py, ax, ay, bx, by)
     # The floor keeps the gradient finite where a point lies on the segment (e.g. a link's
     # base on an obstacle vertex): sqrt'(0) is infinite and 0 * inf would poison masked slots.
     return jnp.sqrt(jnp.maximum(ox * ox + oy * oy, _TINY))
+
+
+class Sweep(NamedTuple):
+    """How far a segment's end points move: the start anywhere on ``s +/- (ux, uy)``, the end
+    on ``e +/- (wx, wy)``, each coordinate of shape (...); the moving segment stays inside
+    the convex hull of those four points (a segment moving linearly, over an interval of r
+    about its centre, in ``jaxarm.checks.collision``)."""
+
+    ux: jax.Array
+    uy: jax.Array
+    wx: jax.Array
+    wy: jax.Array
+
+    def projection(self, sx, sy, ex, ey, nx, ny) -> tuple:
+        """The lowest and highest projection of the hull on the unit axis (nx, ny)."""
+        a, b = sx * nx + sy * ny, ex * nx + ey * ny
+        da, db = jnp.abs(self.ux * nx + self.uy * ny), jnp.abs(self.wx * nx + self.wy * ny)
+        return jnp.minimum(a - da, b - db), jnp.maximum(a + da, b + db)
+
+
+def circle_sweep_gaps(sx, sy, ex, ey, sweep: Sweep, world: WorldArrays) -> list:
+    """A lower bound on the signed separation of every circle slot from a sweep's hull (+inf
+    for empty slots), one array of the coordinates' shape (...) per slot: the separating-axis
+    gap on the axis from the circle's centre through the segment's nearest point at rest.
+    Exact (the separation at rest) for a sweep of zero; a segment moving along a circle's
+    edge loses only its speed towards the centre."""
+    circles = jnp.asarray(world.circles, dtype=sx.dtype)
+    gaps = []
+    for i in range(circles.shape[0]):
+        px, py, radius = circles[i, 0], circles[i, 1], circles[i, 2]
+        ox, oy = _from_segment(px, py, sx, sy, ex, ey)
+        inverse = jax.lax.rsqrt(jnp.maximum(ox * ox + oy * oy, _TINY))
+        nx, ny = -ox * inverse, -oy * inverse  # from the centre towards the segment
+        low, _ = sweep.projection(sx, sy, ex, ey, nx, ny)
+        gaps.append(jnp.where(world.circle_valid[i], low - (px * nx + py * ny) - radius,
+                              jnp.inf))
+    return gaps
 
 
 def circle_slots(sx, sy, ex, ey, world: WorldArrays) -> list:
@@ -385,20 +427,18 @@ class SeparationParts(NamedTuple):
     polygons: jax.Array | None  # shape (n_polygon_slots, ...); None without polygon slots
 
 
-def separation_parts(sx, sy, ex, ey, world: WorldArrays, exact: bool = True) -> SeparationParts:
-    """Signed separation of segments from every obstacle (+inf for empty slots).
+def separation_parts(sx, sy, ex, ey, world: WorldArrays) -> SeparationParts:
+    """Exact signed separation of segments from every obstacle (+inf for empty slots), the
+    polygons with their vertex slots as an axis (the certified check tests a few pieces at a
+    time with them).
 
     Args:
       sx, sy, ex, ey: segment end points, each of shape (...).
-      exact: exact distances (``separation_xy``, polygons with their vertex slots as an axis:
-        the certified check tests a few pieces at a time with them), or the cheaper bound
-        (``separation_bound_xy``: polygons give their separating-axis gap).
     """
-    polygon = (functools.partial(polygon_separation_xy, vertex_axis=True) if exact
-               else polygon_overlap_gap_xy)
     return SeparationParts(
         circles=circle_slots(sx, sy, ex, ey, world),
-        polygons=polygon(sx, sy, ex, ey, world) if world.vertices.shape[0] else None)
+        polygons=(polygon_separation_xy(sx, sy, ex, ey, world, vertex_axis=True)
+                  if world.vertices.shape[0] else None))
 
 
 def polygon_slots(sx, sy, ex, ey, world: WorldArrays, exact: bool = True) -> list:
