@@ -139,10 +139,10 @@ def test_hull_separation_is_a_lower_bound_on_the_shapely_distance_of_the_hull(rn
 
 
 def test_circle_sweep_gaps_are_lower_bounds_on_the_hull_distance_and_exact_at_rest(rng):
-    """A sweep's gap from every circle (``world.circle_sweep_gaps``: the axis through the
-    segment's nearest point) never exceeds shapely's distance of the hull of the four moved
-    end points; at rest it is the segment's exact distance (``circle_slots``); and it is near
-    the hull's distance, nearer still for a segment sliding along itself."""
+    """``world.circle_sweep_gaps``: at rest, every circle's exact separation (``circle_slots``);
+    swept, never above shapely's distance of the hull of the four moved end points from the
+    circles, and near it, nearer still for a segment sliding along itself (measured: medians
+    0.988 and 0.997 of the distance)."""
     ratios = {False: [], True: []}
     for problem in random_world_problems(rng, 40, collision="certified"):
         world, n = problem.arrays.world, 200
@@ -151,10 +151,6 @@ def test_circle_sweep_gaps_are_lower_bounds_on_the_hull_distance_and_exact_at_re
         link = [jnp.asarray(a, jnp.float32) for a in (*start.T, *end.T)]
         nearest = lambda gaps: np.asarray(functools.reduce(  # noqa: E731
             jnp.minimum, gaps, jnp.full(n, jnp.inf)))
-        at_rest = world_lib.Sweep(*(jnp.zeros(n, jnp.float32),) * 4)
-        np.testing.assert_allclose(nearest(world_lib.circle_sweep_gaps(*link, at_rest, world)),
-                                   nearest(world_lib.circle_slots(*link, world)),
-                                   atol=1e-4, rtol=3e-5)  # float32: projections of ~60 cm
         for sliding in (False, True):
             if sliding:
                 along = (end - start) / np.linalg.norm(end - start, axis=1, keepdims=True)
@@ -162,7 +158,11 @@ def test_circle_sweep_gaps_are_lower_bounds_on_the_hull_distance_and_exact_at_re
             else:
                 u, w = rng.normal(0, 3, (n, 2)), rng.normal(0, 3, (n, 2))
             sweep = world_lib.Sweep(*(jnp.asarray(a, jnp.float32) for a in (*u.T, *w.T)))
-            ours = nearest(world_lib.circle_sweep_gaps(*link, sweep, world))
+            at_rest, swept = world_lib.circle_sweep_gaps(*link, sweep, world)
+            np.testing.assert_allclose(nearest(at_rest),
+                                       nearest(world_lib.circle_slots(*link, world)),
+                                       atol=1e-4, rtol=3e-5)  # float32: ~60 cm
+            ours = nearest(swept)
             corners = np.stack([start - u, start + u, end + w, end - w], axis=1)
             _, oracle = _shapely_hull_gaps(problem.world, corners)
             assert np.all(ours <= np.maximum(oracle, 0.0) + 1e-3)
@@ -170,7 +170,8 @@ def test_circle_sweep_gaps_are_lower_bounds_on_the_hull_distance_and_exact_at_re
             ratios[sliding].append(ours[apart] / oracle[apart])
     moving, sliding = (np.concatenate(ratios[key]) for key in (False, True))
     assert len(moving) > 2000 and np.median(moving) > 0.95, np.percentile(moving, [10, 50])
-    assert len(sliding) > 2000 and np.percentile(sliding, 10) > 0.95
+    # sliding: exact where the nearest point is inside the segment, not at an end
+    assert len(sliding) > 2000 and np.median(sliding) > 0.99 and np.percentile(sliding, 10) > 0.9
 
 
 def test_hull_separation_with_the_nearest_circle_alone_is_a_lower_bound(rng):

@@ -108,7 +108,8 @@ def posture_clearance_bound(lengths, world, theta: list, exact: bool = False) ->
             if parts.polygons is not None:
                 nearest = parts.polygons.min(axis=0)
         else:
-            separations = sum(_separation_bounds(link, world), [])
+            circles, polygons = _separation_bounds(link, world)
+            separations = circles + polygons
         bounds.append(functools.reduce(jnp.minimum, separations, nearest))
     return bounds
 
@@ -241,12 +242,14 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
       bounds ``|theta_j'|`` there, from the exact Taylor expansion; ``reach_matrix``).
     - *Drift along each circle's axis*: the link moves as its linear part plus at most
       ``e_k = radius^2 / 2 * A_k`` (``sweep_shortfalls``), and the linear part stays in the
-      hull of its end points moved by ``+/- radius`` times their velocities; ``g_k`` is that
-      hull's gap from every circle on the axis through the link's nearest point at the
-      centre (``world.circle_sweep_gaps``: a link sliding along a circle loses only its speed
-      towards it, where the swing, a sum of magnitudes, loses all of it), and from every
-      polygon its gap at the centre less ``radius`` times the faster end's speed
-      (``_LinkMotion.top_speed``; the same on the polygons' own axes ran far slower).
+      hull of its end points moved by ``+/- radius`` times their velocities; ``g_k`` is the
+      smallest of every circle's separation at the centre less how far that hull reaches
+      towards it, along the axis from its centre through the link's nearest point
+      (``world.circle_sweep_gaps``: a link sliding along a circle loses only its speed
+      towards it, where the swing, a sum of magnitudes, loses all of it), and every polygon's
+      gap at the centre less ``radius`` times the faster end's speed
+      (``_LinkMotion.top_speed``; the same on the polygons' own axes ran far slower, and so
+      did the hull's exact projection, or the nearest circle alone).
       Cheaper than ``sweep_shortfalls`` (no axes of the hull's own edges), which the
       bisection then uses on what fails here.
     """
@@ -256,15 +259,15 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     shortfalls = []
     for k, motion in enumerate(_link_motions(lengths, about_centre, radius)):
         link = (*motion.near, *motion.far)
-        circles, polygons = _separation_bounds(link, world)
-        clearance = functools.reduce(jnp.minimum, circles + polygons,
-                                     jnp.full_like(link[0], jnp.inf))
-        swing = radius * sum(speed[j] * reach[j, k] for j in range(k + 1))
         sweep = world_lib.Sweep(*(radius * v for v in motion.near_velocity + motion.far_velocity))
+        circles, swept_circles = world_lib.circle_sweep_gaps(*link, sweep, world)
+        polygons = world_lib.polygon_slots(*link, world, exact=False)
+        nearest = functools.partial(functools.reduce, jnp.minimum)
+        clearance = nearest(circles + polygons, jnp.full_like(link[0], jnp.inf))
+        swing = radius * sum(speed[j] * reach[j, k] for j in range(k + 1))
         spread = radius * motion.top_speed
-        swept = functools.reduce(jnp.minimum, world_lib.circle_sweep_gaps(*link, sweep, world)
-                                 + [gap - spread for gap in polygons],
-                                 jnp.full_like(link[0], jnp.inf))
+        swept = nearest(swept_circles + [gap - spread for gap in polygons],
+                        jnp.full_like(link[0], jnp.inf))
         shortfalls.append(jnp.minimum(
             swing - (clearance - margin),
             0.5 * radius * radius * motion.acceleration - (swept - margin)))

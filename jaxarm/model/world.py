@@ -16,7 +16,6 @@ largest axis gap is minus the penetration depth when they overlap, and the exact
 from __future__ import annotations
 
 import dataclasses
-import functools
 from typing import NamedTuple
 
 import jax
@@ -264,30 +263,27 @@ class Sweep(NamedTuple):
     wx: jax.Array
     wy: jax.Array
 
-    def projection(self, sx, sy, ex, ey, nx, ny) -> tuple:
-        """The lowest and highest projection of the hull on the unit axis (nx, ny)."""
-        a, b = sx * nx + sy * ny, ex * nx + ey * ny
-        da, db = jnp.abs(self.ux * nx + self.uy * ny), jnp.abs(self.wx * nx + self.wy * ny)
-        return jnp.minimum(a - da, b - db), jnp.maximum(a + da, b + db)
 
-
-def circle_sweep_gaps(sx, sy, ex, ey, sweep: Sweep, world: WorldArrays) -> list:
-    """A lower bound on the signed separation of every circle slot from a sweep's hull (+inf
-    for empty slots), one array of the coordinates' shape (...) per slot: the separating-axis
-    gap on the axis from the circle's centre through the segment's nearest point at rest.
-    Exact (the separation at rest) for a sweep of zero; a segment moving along a circle's
-    edge loses only its speed towards the centre."""
+def circle_sweep_gaps(sx, sy, ex, ey, sweep: Sweep, world: WorldArrays) -> tuple[list, list]:
+    """Every circle slot's signed separation from a segment at rest (as ``circle_slots``), and
+    a lower bound on its separation from the sweep's hull: the separation less how far the
+    hull reaches towards the circle along the axis from its centre through the segment's
+    nearest point (the end points' larger move along it). A segment moving along a circle's
+    edge loses only its speed towards the centre. Two lists of one array of the coordinates'
+    shape (...) per slot, +inf for empty slots."""
     circles = jnp.asarray(world.circles, dtype=sx.dtype)
-    gaps = []
+    at_rest, swept = [], []
     for i in range(circles.shape[0]):
         px, py, radius = circles[i, 0], circles[i, 1], circles[i, 2]
         ox, oy = _from_segment(px, py, sx, sy, ex, ey)
-        inverse = jax.lax.rsqrt(jnp.maximum(ox * ox + oy * oy, _TINY))
-        nx, ny = -ox * inverse, -oy * inverse  # from the centre towards the segment
-        low, _ = sweep.projection(sx, sy, ex, ey, nx, ny)
-        gaps.append(jnp.where(world.circle_valid[i], low - (px * nx + py * ny) - radius,
-                              jnp.inf))
-    return gaps
+        squared = jnp.maximum(ox * ox + oy * oy, _TINY)
+        inverse = jax.lax.rsqrt(squared)
+        separation = squared * inverse - radius
+        reach = jnp.maximum(jnp.abs(sweep.ux * ox + sweep.uy * oy),
+                            jnp.abs(sweep.wx * ox + sweep.wy * oy)) * inverse
+        at_rest.append(jnp.where(world.circle_valid[i], separation, jnp.inf))
+        swept.append(jnp.where(world.circle_valid[i], separation - reach, jnp.inf))
+    return at_rest, swept
 
 
 def circle_slots(sx, sy, ex, ey, world: WorldArrays) -> list:
