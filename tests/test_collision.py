@@ -141,8 +141,7 @@ def test_hull_separation_is_a_lower_bound_on_the_shapely_distance_of_the_hull(rn
 def test_circle_sweep_gaps_are_lower_bounds_on_the_hull_distance_and_exact_at_rest(rng):
     """``world.circle_sweep_gaps``: at rest, every circle's exact separation (``circle_slots``);
     swept, never above shapely's distance of the hull of the four moved end points from the
-    circles, and near it, nearer still for a segment sliding along itself (measured: medians
-    0.988 and 0.997 of the distance)."""
+    circles, and near it, nearer still for a segment sliding along itself."""
     ratios = {False: [], True: []}
     for problem in random_world_problems(rng, 40, collision="certified"):
         world, n = problem.arrays.world, 200
@@ -172,6 +171,27 @@ def test_circle_sweep_gaps_are_lower_bounds_on_the_hull_distance_and_exact_at_re
     assert len(moving) > 2000 and np.median(moving) > 0.95, np.percentile(moving, [10, 50])
     # sliding: exact where the nearest point is inside the segment, not at an end
     assert len(sliding) > 2000 and np.median(sliding) > 0.99 and np.percentile(sliding, 10) > 0.9
+
+
+def test_circle_sweep_gaps_of_a_point_a_centre_on_the_segment_and_nan():
+    """A segment of length zero is a point: its separation is the point's distance less the
+    radius, and the sweep loses its ends' larger move towards the centre; a segment through the
+    centre gets no positive gap; NaN coordinates give NaN (never a gap that proves)."""
+    world = jaxarm.World(circles=[(10.0, 0.0, 2.0)]).pack((2, 1, 4))  # and an empty circle slot
+    cases = {  # (sx, sy, ex, ey, ux, uy, wx, wy)
+        "point": (4.0, 0.0, 4.0, 0.0, 1.0, 0.5, -0.5, 3.0),
+        "through the centre": (5.0, 0.0, 15.0, 0.0, 0.0, 1.0, 0.0, 1.0),
+        "nan": (float("nan"), 0.0, 4.0, 0.0, 1.0, 0.0, 1.0, 0.0)}
+    at_rest, swept = {}, {}
+    for name, values in cases.items():
+        sx, sy, ex, ey, *moves = (jnp.float32(v) for v in values)
+        rest, moving = world_lib.circle_sweep_gaps(sx, sy, ex, ey, world_lib.Sweep(*moves), world)
+        assert float(rest[1]) == float(moving[1]) == np.inf  # the empty slot
+        at_rest[name], swept[name] = float(rest[0]), float(moving[0])
+    assert at_rest["point"] == pytest.approx(6.0 - 2.0)
+    assert swept["point"] == pytest.approx(6.0 - 2.0 - 1.0)  # towards the centre: +x only
+    assert at_rest["through the centre"] <= -2.0 + 1e-5 and swept["through the centre"] <= 0
+    assert np.isnan(at_rest["nan"]) and np.isnan(swept["nan"])
 
 
 def test_hull_separation_with_the_nearest_circle_alone_is_a_lower_bound(rng):

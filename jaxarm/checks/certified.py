@@ -20,7 +20,8 @@ Three stages, all batched over paths.
    bound sees the direction of the motion: the link moves as its linear part (its end points
    along their velocities) plus at most ``rho^2 / 2 A_k`` (A_k bounds the acceleration of its
    points), and against a circle only the linear part's speed towards the circle counts (so a
-   link sliding along an obstacle, the swarm's typical grazing path, loses little). Either
+   link sliding along it, the swarm's typical grazing path, loses little; against a polygon,
+   the faster end's full speed). Either
    bound proves a link; a window's *shortfall* is the largest excess over the links. This pass
    is cheap (``collision.drift_shortfalls``: no separating axes of the swept hull) and records
    which windows fail as a bit mask.

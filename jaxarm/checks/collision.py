@@ -93,7 +93,8 @@ def posture_clearance_bound(lengths, world, theta: list, exact: bool = False) ->
         written out slot by slot, the certified bisection took far longer to compile), or the
         cheaper bound, polygons slot by slot (``world.polygon_slots``: with the slots as an
         axis, the certified check's samples and windows ran far slower on polygon scenes;
-        ``benchmarks/RESULTS.md``, *Decisions and negative results*, "Polygons slot by slot").
+        ``benchmarks/RESULTS.md``, *Decisions and negative results*, "Polygons slot by slot in
+        the certified check's samples and windows")
 
     Returns:
       A list of n_joints arrays of shape (...,); negative values are minus a penetration
@@ -108,17 +109,15 @@ def posture_clearance_bound(lengths, world, theta: list, exact: bool = False) ->
             if parts.polygons is not None:
                 nearest = parts.polygons.min(axis=0)
         else:
-            circles, polygons = _separation_bounds(link, world)
-            separations = circles + polygons
-        bounds.append(functools.reduce(jnp.minimum, separations, nearest))
+            separations = (world_lib.circle_slots(*link, world)
+                           + world_lib.polygon_slots(*link, world, exact=False))
+        bounds.append(_smallest(separations, nearest))
     return bounds
 
 
-def _separation_bounds(link: tuple, world) -> tuple[list, list]:
-    """One link's (end points') exact distance from every circle slot and separating-axis gap
-    from every polygon slot, slot by slot: two lists of arrays of shape (...,)."""
-    return (world_lib.circle_slots(*link, world),
-            world_lib.polygon_slots(*link, world, exact=False))
+def _smallest(values: list, initial):
+    """The elementwise minimum of ``initial`` and a list of arrays."""
+    return functools.reduce(jnp.minimum, values, initial)
 
 
 def sampled_fold(lengths, world, x, n_samples: int, margin=0.0,
@@ -237,7 +236,7 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     (cm; <= 0 proves the link clear): ``[min(s_k - (c_k - margin), e_k - (g_k - margin)) for
     each link k]``.
 
-    - *Swing*: ``c_k`` is ``posture_clearance_bound``'s at the centre (the cheaper bound),
+    - *Swing*: ``c_k`` is the cheaper bound of ``posture_clearance_bound`` at the centre,
       ``s_k = radius sum_{j<=k} M_j R_{jk}`` how far any point of link k can move (``M_j``
       bounds ``|theta_j'|`` there, from the exact Taylor expansion; ``reach_matrix``).
     - *Drift along each circle's axis*: the link moves as its linear part plus at most
@@ -248,8 +247,9 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
       (``world.circle_sweep_gaps``: a link sliding along a circle loses only its speed
       towards it, where the swing, a sum of magnitudes, loses all of it), and every polygon's
       gap at the centre less ``radius`` times the faster end's speed
-      (``_LinkMotion.top_speed``; the same on the polygons' own axes ran far slower, and so
-      did the hull's exact projection, or the nearest circle alone).
+      (``_LinkMotion.top_speed``). Variants that cost more than they proved:
+      ``benchmarks/RESULTS.md``, *Decisions and negative results*, "The window pass sees the
+      direction of the motion".
       Cheaper than ``sweep_shortfalls`` (no axes of the hull's own edges), which the
       bisection then uses on what fails here.
     """
@@ -262,12 +262,11 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
         sweep = world_lib.Sweep(*(radius * v for v in motion.near_velocity + motion.far_velocity))
         circles, swept_circles = world_lib.circle_sweep_gaps(*link, sweep, world)
         polygons = world_lib.polygon_slots(*link, world, exact=False)
-        nearest = functools.partial(functools.reduce, jnp.minimum)
-        clearance = nearest(circles + polygons, jnp.full_like(link[0], jnp.inf))
+        none = jnp.full_like(link[0], jnp.inf)  # a world without obstacles
+        clearance = _smallest(circles + polygons, none)
         swing = radius * sum(speed[j] * reach[j, k] for j in range(k + 1))
         spread = radius * motion.top_speed
-        swept = nearest(swept_circles + [gap - spread for gap in polygons],
-                        jnp.full_like(link[0], jnp.inf))
+        swept = _smallest(swept_circles + [gap - spread for gap in polygons], none)
         shortfalls.append(jnp.minimum(
             swing - (clearance - margin),
             0.5 * radius * radius * motion.acceleration - (swept - margin)))

@@ -315,7 +315,8 @@ def polygon_overlap_gap_xy(sx, sy, ex, ey, world: WorldArrays):
 
     The polygon slots stay an array axis here (unlike ``circle_slots``): written out per slot
     and per vertex, the certified check of a world with 8 polygon slots took 4 minutes and 8 GB
-    to compile. The sampled check calls it one slot at a time (``polygon_slots``).
+    to compile. The sampled check, and the certified check's samples and windows, call it one
+    slot at a time (``polygon_slots``).
 
     The obstacle data, shape (n_slots, 1, ..., 1), meet the coordinates by NumPy's rank
     promotion. With the coordinates' leading axis made explicit the values were the same, but
@@ -442,11 +443,12 @@ def polygon_slots(sx, sy, ex, ey, world: WorldArrays, exact: bool = True) -> lis
     slot by slot: one array of the coordinates' shape (...) per slot.
 
     Like ``separation_parts(...).polygons`` unstacked, but each slot is computed alone (as a
-    world of one polygon). The sampled check uses it: with the polygon slots as an array axis,
-    XLA compiled the search's check into slow loops whenever there were 2 or more slots. The
-    certified check keeps the array form: written out slot by slot, its program took far
-    longer to compile ("Polygons slot by slot in the sampled check" in
-    ``benchmarks/RESULTS.md``, *Decisions and negative results*).
+    world of one polygon). The sampled check and the certified check's samples and windows use
+    it: with the polygon slots as an array axis, XLA compiled them into slow loops whenever
+    there were 2 or more slots. The certified bisection's exact distances keep the array form:
+    written out slot by slot, its program took far longer to compile (``benchmarks/RESULTS.md``,
+    *Decisions and negative results*, "Polygons slot by slot in the sampled check" and
+    "Polygons slot by slot in the certified check's samples and windows").
     """
     polygon = polygon_separation_xy if exact else polygon_overlap_gap_xy
     return [polygon(sx, sy, ex, ey, one_polygon(world, k))[0]
