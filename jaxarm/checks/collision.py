@@ -250,8 +250,9 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
       (``_LinkMotion.top_speed``). Variants that cost more than they proved:
       ``benchmarks/RESULTS.md``, *Decisions and negative results*, "The window pass sees the
       direction of the motion".
-      Cheaper than ``sweep_shortfalls`` (no axes of the hull's own edges), which the
-      bisection then uses on what fails here.
+
+    Cheaper than ``sweep_shortfalls`` (no axes of the hull's own edges), which the bisection
+    then uses on what fails here.
     """
     speed = [taylor_speed_bound([order[j] for order in about_centre], radius)
              for j in range(len(about_centre[0]))]
