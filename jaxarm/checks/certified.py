@@ -21,10 +21,9 @@ Three stages, all batched over paths.
    along their velocities) plus at most ``rho^2 / 2 A_k`` (A_k bounds the acceleration of its
    points), and against a circle only the linear part's speed towards the circle counts (so a
    link sliding along it, the swarm's typical grazing path, loses little; against a polygon,
-   the faster end's full speed). Either
-   bound proves a link; a window's *shortfall* is the largest excess over the links. This pass
-   is cheap (``collision.drift_shortfalls``: no separating axes of the swept hull) and records
-   which windows fail as a bit mask.
+   the faster end's full speed). Either bound proves a link; a window's *shortfall* is the
+   largest excess over the links. This pass is cheap (``collision.drift_shortfalls``: no
+   separating axes of the swept hull) and records which windows fail as a bit mask.
 
 2. **Bisection** of the failing windows of every path without a witness. Each piece is tested
    about its own centre with two bounds on every link's distance to the obstacles over the
@@ -38,11 +37,10 @@ Three stages, all batched over paths.
      (the hull's exact distance from the circle nearest the link at the centre, when apart:
      its axes include the one through the hull's nearest corner; the other circles count
      their distance less the hull's spread), less ``radius^2 / 2`` times a bound on the
-     acceleration of the link's
-     points. A link
-     sweeping past an obstacle at a small clearance c is proved with pieces of radius about
-     ``sqrt(c)`` instead of c, so a path the swarm drives against an obstacle costs a few
-     pieces instead of a number growing as ``1 / sqrt(c)``.
+     acceleration of the link's points. A link sweeping past an obstacle at a small
+     clearance c is proved with pieces of radius about ``sqrt(c)`` instead of c, so a path the
+     swarm drives against an obstacle costs a few pieces instead of a number growing as
+     ``1 / sqrt(c)``.
 
    A piece ends as
 

@@ -444,8 +444,9 @@ def polygon_slots(sx, sy, ex, ey, world: WorldArrays, exact: bool = True) -> lis
 
     Like ``separation_parts(...).polygons`` unstacked, but each slot is computed alone (as a
     world of one polygon). The sampled check and the certified check's samples and windows use
-    it: with the polygon slots as an array axis, XLA compiled them into slow loops whenever
-    there were 2 or more slots. The certified bisection's exact distances keep the array form:
+    it: with the polygon slots as an array axis, XLA compiled the sampled check into slow loops
+    whenever there were 2 or more slots, and the certified check's samples and windows ran far
+    slower on polygon scenes. The certified bisection's exact distances keep the array form:
     written out slot by slot, its program took far longer to compile (``benchmarks/RESULTS.md``,
     *Decisions and negative results*, "Polygons slot by slot in the sampled check" and
     "Polygons slot by slot in the certified check's samples and windows").
