@@ -139,33 +139,34 @@ def test_certified_escapes_counts_only_the_restarts_that_ended_free_per_outcome(
     assert report._certified_escapes(case1, outcomes) == [(17, 18), (0, 0), (1, 1)]
 
 
-@pytest.mark.parametrize("check", ["sampled", "certified"])
-def test_the_suite_table_names_its_check_and_leads_with_certified_paths(check, tmp_path):
-    """Every escape column says which check counted it; under the sampled check the table
-    leads with the seeds whose best path ``certify`` proves free (all of them on open-space,
-    which has no obstacle), and the figure's title says seeds, preset and check."""
+def test_the_suite_table_searches_under_the_certified_check_and_names_it(tmp_path):
+    """Every escape column says the certified check counted it, no column re-certifies what it
+    already proved, and the figure's title says seeds, preset and check. The free share is
+    measured at the arm's shared capacities: the same share as at the scene's own."""
     part = report._Report(tmp_path)
     figures = []
     saved = part.figure
     part.figure = lambda figure, *args: (figures.append(figure), saved(figure, *args))
-    problems = report._suite_problems(["open-space"], check)
+    problems = report._suite_problems(["two-circles", "open-space"])
+    assert all(p.collision == "certified" for p in problems)
     report._suite(part, problems, 3, 3, False)
     text = "\n".join(part.lines)
     assert_tables_render(text)
     header = next(line for line in part.lines if line.startswith("| scenario"))
-    row = next(line for line in part.lines if line.startswith("| open-space"))
     escape_columns = [c for c in header.split("|") if "escape" in c]
-    assert len(escape_columns) == 2 and all(f"{check} check" in c for c in escape_columns)
-    if check == "sampled":
-        assert header.split("|")[3].strip().startswith("feasibility rules: best path certified")
-        assert row.split("|")[3].strip().startswith("100% [")
-    else:
-        assert "certified free" not in header
+    assert len(escape_columns) == 2 and all("certified check" in c for c in escape_columns)
+    assert "certified free" not in header
+    shared = jaxarm.share_capacities(problems)
+    assert shared[1].capacities != problems[1].capacities  # open-space padded to two circles
+    for problem in problems:
+        row = next(line for line in part.lines if line.startswith(f"| {problem.name} "))
+        share = jaxarm.feasible_fraction(problem)
+        assert f"| {share.fraction:.2%} [" in row
     [figure] = figures
     title = figure.axes[0].get_title()
-    assert "preset A" in title and "3 seeds" in title and f"{check} check" in title
+    assert "preset A" in title and "3 seeds" in title and "certified check" in title
     legend = [t.get_text() for t in figure.axes[0].get_legend().get_texts()]
-    assert all("check" in label or "certified" in label for label in legend)
+    assert all("certified check" in label for label in legend)
 
 
 def _section(title, text, long=False, wait=None):

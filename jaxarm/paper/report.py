@@ -84,11 +84,8 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
 
     Args:
       out_dir: output folder (created).
-      quick: smaller studies (100 seeds on case 1, 50 per suite scenario) for a demo, and the
-        sections beyond the paper searched under the paper's sampled check (their tables lead
-        with the share of seeds whose best path ``certify`` proves free) instead of the
-        certified one, whose searches take several times longer (``benchmarks/RESULTS.md``,
-        *Certified search speed*).
+      quick: smaller studies for a demo: 100 seeds on case 1, 50 per suite scenario, 20
+        restarts per degree.
       n_restarts: seeds of the case-1 study (default 500, or 100 when quick).
       suite: scenario names for the suite study (default: every shipped scenario).
       suite_restarts: seeds per suite scenario (default 200, or 50 when quick).
@@ -111,8 +108,7 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
                   else (100 if quick else 500))
     suite_restarts = (positive_int("suite_restarts", suite_restarts) if suite_restarts is not None
                    else (50 if quick else 200))
-    beyond = "sampled" if quick else "certified"  # the check of the sections beyond the paper
-    suite = _suite_problems(list(scenario_files.available()) if suite is None else suite, beyond)
+    suite = _suite_problems(list(scenario_files.available()) if suite is None else suite)
     degrees = [positive_int("degrees", d, minimum=MIN_DEGREE, maximum=MAX_DEGREE)
                for d in degrees]
     workers = _section_workers(workers)
@@ -124,8 +120,7 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
     case1, case2, case3 = (scenario_files.load_scenario(name, collision="sampled")
                            for name in ("paper-case-1", "paper-case-2", "paper-case-3"))
     # The rules section runs case 1 and death-trap as the suite runs its scenes.
-    rules_problems = _suite_problems(["paper-case-1", "death-trap"], beyond,
-                                     share_with=suite)
+    rules_problems = _suite_problems(["paper-case-1", "death-trap"])
     report.add(
         "# jaxarm: reproduction of Machmudah & Parman (2013)", "",
         f"Generated {datetime.datetime.now():%Y-%m-%d %H:%M} by `jaxarm reproduce-paper"
@@ -137,15 +132,9 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         "paper's own tables (Tables 2-6 and the case-1 escape study) use the paper's check, "
         "free at its 101 samples of r, as the paper did, and say so in their captions: most "
         "of those escapes cross an obstacle between two samples, and each table counts the "
-        "ones `jaxarm.certify` proves free. " + (
-            "To stay within a couple of minutes, this quick report searches the sections beyond "
-            "the paper (degree, constraint rules, the suite) under the sampled check too and "
-            "leads their tables with the seeds whose best path is certified free; without "
-            "--quick they search under the certified check itself."
-            if quick else
-            "The sections beyond the paper (degree, constraint rules, the suite) search under "
-            "the certified check, so every escape they count is a path proved collision-free."),
-        "",
+        "ones `jaxarm.certify` proves free. The sections beyond the paper (degree, constraint "
+        "rules, the suite) search under the certified check, so every escape they count is a "
+        "path proved collision-free.", "",
         "**Scenarios are reconstructed.** The paper's figures of case 1's postures and of every "
         "obstacle did not survive; the shipped scenarios are fitted to its published numbers "
         "(see *How the scenarios were reconstructed* below). Fitness values of published "
@@ -179,7 +168,7 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         _Section("cases II and III (Table 3), Tables 4-6", tables_3_to_6),
         _Section(f"beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine",
                  lambda part: part.add(*beyond_paper_section(
-                     [p.replace(collision=beyond) for p in (case1, case2, case3)],
+                     [p.replace(collision="certified") for p in (case1, case2, case3)],
                      20 if quick else 100, degrees)), long=True),
         _Section(f"constraint rules compared on case 1 and death-trap, {n_restarts} seeds each",
                  rules_and_case_2),
@@ -476,7 +465,7 @@ def _orientation(joints) -> float:
 
 
 def _escape_section(report: _Report, case1, case1_study, proved_on) -> None:
-    """``proved_on``: case 1 as the rules section runs it (its certify programs are shared)."""
+    """``proved_on``: case 1 as the rules section runs it (certified check, own capacities)."""
     n = case1_study.methods[0].n_restarts
     report.add(
         f"## Escape probability on case 1 over {n} seeds (the paper's sampled check)", "",
@@ -584,18 +573,13 @@ def _table_6(report: _Report, case2) -> None:
     report.add("")
 
 
-def _suite_problems(names, collision: str, share_with=()) -> list:
-    """Scenarios under the ``collision`` check, loaded before any study so that a bad name or
-    file fails first. Under the sampled check every scene of an arm gets the arm's largest
-    capacities (with ``share_with``'s too), so that they share compiled programs; under the
-    certified check each keeps its own, since that check computes every padded slot in its
-    costlier tests."""
+def _suite_problems(names) -> list:
+    """Scenarios under the certified check, loaded before any study so that a bad name or file
+    fails first. Each keeps its own obstacle capacities for its searches: the certified check
+    computes every padded slot in its costlier tests."""
     if isinstance(names, str) or not names:
         raise ValueError(f"suite must be a non-empty list of scenario names, got {names!r}")
-    problems = [scenario_files.load_scenario(name, collision=collision) for name in names]
-    if collision == "certified":
-        return problems
-    return share_capacities(problems + list(share_with))[:len(problems)]
+    return [scenario_files.load_scenario(name, collision="certified") for name in names]
 
 
 def _shared_chunk(n_restarts: int, suite_restarts: int) -> int:
@@ -607,20 +591,14 @@ def _shared_chunk(n_restarts: int, suite_restarts: int) -> int:
     return common if common >= 20 else 500
 
 
-def _check_sentence(sampled: bool) -> str:
-    """What an escape means in a section searched under the sampled or the certified check."""
-    if sampled:
-        return ("An escape here is a path free at the 101 samples, which can still cross an "
-                "obstacle between them. *Best path certified free* is the share of seeds whose "
-                "best path `jaxarm.certify` proves collision-free for every r. ")
-    return "An escape is a path the certified check proves collision-free for every r. "
+CERTIFIED_ESCAPE = "An escape is a path the certified check proves collision-free for every r. "
 
 
 def _certified_escapes(problem, outcomes) -> list[tuple[int, int]]:
     """For each ``RestartOutcome`` (NumPy arrays over seeds): how many best paths of the
     restarts that ended free under the study's check ``certify`` proves free for every r, and
-    how many such restarts there are. ``certify`` runs on blocks of its smallest batch, whose
-    program the suite's certified counts compile (one program per problem spec and batch)."""
+    how many such restarts there are. ``certify`` runs on blocks of its smallest batch (one
+    compiled program per problem spec and batch)."""
     paths = [outcome.best_x[outcome.feasible] for outcome in outcomes]
     rows = np.concatenate(paths)
     free = np.concatenate([np.zeros(0, bool)] + [
@@ -631,60 +609,48 @@ def _certified_escapes(problem, outcomes) -> list[tuple[int, int]]:
 
 
 def _suite(report: _Report, problems: list, n_restarts: int, chunk: int, progress) -> None:
+    """The suite's table and figure: each scene searched under its own check (certified) and
+    capacities; its free share measured at the arm's shared capacities (``share_capacities``:
+    one compiled check per arm instead of one per scene; the padded slots are empty)."""
     check = problems[0].collision
-    sampled = check == "sampled"
     report.add(
         f"## The shipped suite: escape rates over {n_restarts} seeds (preset A, {check} "
         "check)", "",
-        _check_sentence(sampled),
+        CERTIFIED_ESCAPE if check == "certified" else "",
         "*Free share*: the share of the init range whose paths are collision-free under the "
         f"{check} check (`jaxarm.feasible_fraction`, 10,000 uniform draws); *start*: the "
         "probability that the initial swarm of 20 already holds a free path, predicted from it "
-        "(1 - (1 - p)^20) and measured (seeds escaped at iteration 0, death penalty). "
-        + ("" if not sampled else
-           "Scenes of the same arm run at that arm's largest obstacle capacities "
-           "(`jaxarm.share_capacities`), so that they share compiled programs; a run at a "
-           "scene's own capacities can differ in the last bits. ") + "",
-        "",
-        "| scenario | links |"
-        + (" feasibility rules: best path certified free [95 % CI] |" if sampled else "")
-        + f" death penalty: escape, {check} check [95 % CI] | feasibility rules: escape, "
-        f"{check} check [95 % CI] | best fitness | free share [95 % CI] | start: predicted / "
-        "measured |",
-        "|---|---|---|---|---|---|---|" + ("---|" if sampled else ""),
+        "(1 - (1 - p)^20) and measured (seeds escaped at iteration 0, death penalty).", "",
+        f"| scenario | links | death penalty: escape, {check} check [95 % CI] | feasibility "
+        f"rules: escape, {check} check [95 % CI] | best fitness | free share [95 % CI] | "
+        "start: predicted / measured |",
+        "|---|---|---|---|---|---|---|",
     )
     rates = []
-    for problem in problems:
+    for problem, shared in zip(problems, share_capacities(problems)):
         result = study.escape_study(problem, ["A", "A:feasibility"], n_restarts=n_restarts,
                                     chunk_size=chunk, progress=progress)
         cells = [_rate_cell(int(m.escaped.sum()), m.n_restarts) for m in result.methods]
-        proved = None
-        if sampled:
-            [(proved, _)] = _certified_escapes(problem, [result.methods[1].outcome])
-            cells.insert(0, _rate_cell(proved, n_restarts))
         best = max(float(m.outcome.best_fitness.max()) for m in result.methods)
-        share = feasible_fraction(problem)
+        share = feasible_fraction(shared)
         predicted, _ = share.start_escape(20)
         report.add(f"| {problem.name} | {problem.n_joints} | " + " | ".join(cells)
                    + f" | {best:.4f} | {share.fraction:.2%} [{share.interval[0]:.2%}, "
                    f"{share.interval[1]:.2%}] | {predicted:.0%} / "
                    f"{result.methods[0].start_escape_rate():.0%} |")
-        rates.append((problem.name, result, proved))
+        rates.append((problem.name, result))
     report.add("")
     bars = [(f"death penalty: escape, {check} check",
-             [r.methods[0].escape_rate() for _, r, _ in rates]),
+             [r.methods[0].escape_rate() for _, r in rates]),
             (f"feasibility rules: escape, {check} check",
-             [r.methods[1].escape_rate() for _, r, _ in rates])]
-    if sampled:
-        bars.append(("feasibility rules: best path certified free",
-                     [proved / n_restarts for _, _, proved in rates]))
+             [r.methods[1].escape_rate() for _, r in rates])]
     figure = Figure(figsize=(9.0, 4.2), layout="constrained")
     ax = figure.add_subplot()
     positions = np.arange(len(rates))
     width = 0.8 / len(bars)
     for index, (label, heights) in enumerate(bars):
         ax.bar(positions + (index - (len(bars) - 1) / 2) * width, heights, width, label=label)
-    ax.set_xticks(positions, [name for name, _, _ in rates], rotation=40, ha="right",
+    ax.set_xticks(positions, [name for name, _ in rates], rotation=40, ha="right",
                   fontsize=8)
     ax.set_ylabel("share of seeds")
     ax.set_ylim(0, 1.05)
@@ -721,12 +687,12 @@ def rule_methods() -> tuple[list, str]:
 def _rules_section(report: _Report, problems: list, n_restarts: int, chunk: int,
                    progress) -> None:
     check = problems[0].collision
-    sampled = check == "sampled"
     methods, evosax_note = rule_methods()
     curves = []
     report.add(
         "## Constraint rules compared (preset A, and evosax strategies)", "",
-        f"{n_restarts} seeds per row, the {check} check. {_check_sentence(sampled)}"
+        f"{n_restarts} seeds per row, the {check} check. "
+        + (CERTIFIED_ESCAPE if check == "certified" else "") +
         "Rules (`jaxarm.optim.constraints`): the "
         "paper's death penalty, feasibility rules, the epsilon-constrained comparison and an "
         "adaptive penalty; *ring* rows use the lbest ring topology instead of the global best, "
@@ -735,17 +701,14 @@ def _rules_section(report: _Report, problems: list, n_restarts: int, chunk: int,
         "Escape rate is CEC 2006's *feasible rate*; fitness medians are over the restarts that "
         "end feasible. The last column compares each row's escape rate with the death "
         f"penalty's (difference, 95 % Newcombe interval, Fisher exact p). {evosax_note}", "",
-        "| scenario | rule |" + (" best path certified free [95 % CI] |" if sampled else "")
-        + f" escape, {check} check [95 % CI] | median escape iter | median / best fitness "
-        "| vs death penalty |",
-        "|---|---|---|---|---|---|" + ("---|" if sampled else ""),
+        f"| scenario | rule | escape, {check} check [95 % CI] | median escape iter | median / "
+        "best fitness | vs death penalty |",
+        "|---|---|---|---|---|---|",
     )
     for problem in problems:
         result = study.escape_study(problem, methods, n_restarts=n_restarts, chunk_size=chunk,
                                     progress=progress)
-        proved = (_certified_escapes(problem, [method.outcome for method in result.methods])
-                  if sampled else [None] * len(result.methods))
-        for method, counts in zip(result.methods, proved):
+        for method in result.methods:
             s = method.summary()
             versus = "–"
             if method.variant.label != "A":
@@ -755,8 +718,7 @@ def _rules_section(report: _Report, problems: list, n_restarts: int, chunk: int,
             best = "–" if s["fitness_best"] is None else f"{s['fitness_best']:.4f}"
             iteration = ("–" if s["escape_iter_median"] is None
                          else f"{s['escape_iter_median']:.0f}")
-            proof = f" {_rate_cell(counts[0], method.n_restarts)} |" if sampled else ""
-            report.add(f"| {problem.name} | {method.variant.label} |{proof} "
+            report.add(f"| {problem.name} | {method.variant.label} | "
                        f"{s['escape_rate']:.1%} [{s['ci95_low']:.1%}, {s['ci95_high']:.1%}] | "
                        f"{iteration} | {median} / {best} | {versus} |")
         curves.append((problem.name, plot.plot_escape_curves(result)))
