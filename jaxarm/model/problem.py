@@ -306,7 +306,7 @@ def share_capacities(problems) -> list[Problem]:
     ``benchmarks/RESULTS.md``, *Decisions and negative results*); its results are as valid,
     though not always bit for bit the same (another compiled program can round differently in
     the last bits).
-    The quick report uses it for its suite, its rules section and its degree comparison.
+    ``reproduce-paper`` uses it for its suite's free shares and its degree comparison.
 
     Args:
       problems: ``Problem``s.
