@@ -1,6 +1,7 @@
 """Degree 6 vs 7 vs 8 and PSO vs PSO + refine on the paper's cases; prints a markdown table.
 
-As in ``jaxarm reproduce-paper``: the paper's sampled check, the three cases at shared
+The function behind ``jaxarm reproduce-paper``'s section, here under the paper's sampled
+check (the report's section searches under the certified one), the three cases at shared
 obstacle capacities (``jaxarm.share_capacities``).
 
     .venv/bin/python benchmarks/beyond_paper.py [--restarts 100]

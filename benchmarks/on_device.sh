@@ -3,11 +3,11 @@
 # Python 3.12 and no network): fitness-kernel throughput (benchmarks/throughput.py), the escape
 # study's time up to 10,000 restarts (benchmarks/escape_bench.py), the certified search beside
 # the sampled one on paper-case-1 (benchmarks/certified_speed.py, 200 restarts: its dense shapely
-# oracle runs on the CPU, about 0.2 s per path) and the certified check's tests on the GPU, which
-# runs its bisection with 1024 lanes there instead of 64. Each step has its own time limit
-# (9.5 minutes in all: a device command may run 10; on an H200 the second run's steps took
-# 2 / 87 / 84 / 71 s, and the tests ran out of their 120 s, mostly compiling) and its log in
-# $OUT; a step that fails or runs out of time does not stop the next.
+# oracle runs on the CPU, about 0.2 s per path) and the certified check's tests on the GPU, where
+# its bisection runs 1024 lanes when more than 2048 paths need it (64 on CPU). Each step has
+# its own time limit (9.5 minutes in all: a device command may run 10; on an H200 the second
+# run's steps took 2 / 87 / 84 / 71 s, and the tests ran out of their 120 s, mostly
+# compiling) and its log in $OUT; a step that fails or runs out of time does not stop the next.
 #
 #   benchmarks/on_device.sh prepare   # here, first: wheels the image lacks, into .whl/
 #   benchmarks/on_device.sh           # there: device tool, carry [".whl"], timeout_s 590

@@ -151,7 +151,7 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         part.text("case1_study.csv", case1_study.to_csv())
         _table_2(part, case1_study)
         _reconstruction_section(part, case1, case2, case1_study)
-        _escape_section(part, case1, case1_study, rules_problems[0])
+        _escape_section(part, case1, case1_study)
 
     def tables_3_to_6(part: _Report) -> None:
         _table_3(part, case2, case3)
@@ -464,8 +464,7 @@ def _orientation(joints) -> float:
     return float(np.angle(np.exp(1j * np.sum(joints))))
 
 
-def _escape_section(report: _Report, case1, case1_study, proved_on) -> None:
-    """``proved_on``: case 1 as the rules section runs it (certified check, own capacities)."""
+def _escape_section(report: _Report, case1, case1_study) -> None:
     n = case1_study.methods[0].n_restarts
     report.add(
         f"## Escape probability on case 1 over {n} seeds (the paper's sampled check)", "",
@@ -478,7 +477,7 @@ def _escape_section(report: _Report, case1, case1_study, proved_on) -> None:
         "restarts that escaped, those whose best path `jaxarm.certify` proves free for every r: "
         + ", ".join(f"{method.variant.label} {proved}/{escaped}" for method, (proved, escaped)
                     in zip(case1_study.methods, _certified_escapes(
-                        proved_on, [m.outcome for m in case1_study.methods]))) + ".", "",
+                        case1, [m.outcome for m in case1_study.methods]))) + ".", "",
     )
     report.figure(plot.plot_escape_rates(case1_study), "case1_escape_rates.png",
                   "Escape rates on case 1")
@@ -493,7 +492,7 @@ def _escape_section(report: _Report, case1, case1_study, proved_on) -> None:
                   "case1_convergence.png", "Escape and evolution, preset A")
     rules = case1_study.method("A:feasibility").outcome
     x = rules.best_x[rules.best_restart()]
-    proof = certify(proved_on, x)
+    proof = certify(case1, x)
     depth = -float(proof.clearance)
     between = ("certified free for every r" if bool(proof.free) else
                f"it enters an obstacle between two samples ({depth:.2g} cm deep)"
@@ -584,14 +583,14 @@ def _suite_problems(names) -> list:
 
 def _shared_chunk(n_restarts: int, suite_restarts: int) -> int:
     """Seeds per compiled call in every study of the report: the greatest common divisor of the
-    two study sizes when it is at least 20 (50 quick, 100 in full), so that the case-1 and
-    death-trap studies reuse the suite's programs (results do not depend on it); else
+    two study sizes when it is at least 20 (50 quick, 100 in full), so that the rules section's
+    case-1 and death-trap studies reuse the suite's programs (results do not depend on it); else
     ``escape_study``'s default."""
     common = math.gcd(n_restarts, suite_restarts)
     return common if common >= 20 else 500
 
 
-CERTIFIED_ESCAPE = "An escape is a path the certified check proves collision-free for every r. "
+_CERTIFIED_ESCAPE = "An escape is a path the certified check proves collision-free for every r. "
 
 
 def _certified_escapes(problem, outcomes) -> list[tuple[int, int]]:
@@ -612,11 +611,11 @@ def _suite(report: _Report, problems: list, n_restarts: int, chunk: int, progres
     """The suite's table and figure: each scene searched under its own check (certified) and
     capacities; its free share measured at the arm's shared capacities (``share_capacities``:
     one compiled check per arm instead of one per scene; the padded slots are empty)."""
-    check = problems[0].collision
+    check = "certified"  # ``_suite_problems`` loads every scene under it
     report.add(
         f"## The shipped suite: escape rates over {n_restarts} seeds (preset A, {check} "
         "check)", "",
-        CERTIFIED_ESCAPE if check == "certified" else "",
+        _CERTIFIED_ESCAPE,
         "*Free share*: the share of the init range whose paths are collision-free under the "
         f"{check} check (`jaxarm.feasible_fraction`, 10,000 uniform draws); *start*: the "
         "probability that the initial swarm of 20 already holds a free path, predicted from it "
@@ -686,13 +685,12 @@ def rule_methods() -> tuple[list, str]:
 
 def _rules_section(report: _Report, problems: list, n_restarts: int, chunk: int,
                    progress) -> None:
-    check = problems[0].collision
+    check = "certified"  # ``_suite_problems`` loads both scenes under it
     methods, evosax_note = rule_methods()
     curves = []
     report.add(
         "## Constraint rules compared (preset A, and evosax strategies)", "",
-        f"{n_restarts} seeds per row, the {check} check. "
-        + (CERTIFIED_ESCAPE if check == "certified" else "") +
+        f"{n_restarts} seeds per row, the {check} check. {_CERTIFIED_ESCAPE}"
         "Rules (`jaxarm.optim.constraints`): the "
         "paper's death penalty, feasibility rules, the epsilon-constrained comparison and an "
         "adaptive penalty; *ring* rows use the lbest ring topology instead of the global best, "
