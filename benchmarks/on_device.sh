@@ -6,8 +6,8 @@
 # oracle runs on the CPU, about 0.2 s per path) and the certified check's tests on the GPU, where
 # its bisection runs 1024 lanes when more than 2048 paths need it (64 on CPU). Each step has
 # its own time limit (9.5 minutes in all: a device command may run 10; on an H200 the second
-# run's steps took 2 / 87 / 84 / 71 s, and the tests ran out of their 120 s, mostly
-# compiling) and its log in $OUT; a step that fails or runs out of time does not stop the next.
+# run's steps took 2 / 87 / 84 / 71 s, and the tests ran out of their 120 s; alone, they took
+# 140 s) and its log in $OUT; a step that fails or runs out of time does not stop the next.
 #
 #   benchmarks/on_device.sh prepare   # here, first: wheels the image lacks, into .whl/
 #   benchmarks/on_device.sh           # there: device tool, carry [".whl"], timeout_s 590

@@ -610,7 +610,8 @@ def _certified_escapes(problem, outcomes) -> list[tuple[int, int]]:
 def _suite(report: _Report, problems: list, n_restarts: int, chunk: int, progress) -> None:
     """The suite's table and figure: each scene searched under its own check (certified) and
     capacities; its free share measured at the arm's shared capacities (``share_capacities``:
-    one compiled check per arm instead of one per scene; the padded slots are empty)."""
+    one compiled check per arm instead of one per distinct capacities; the padded slots are
+    empty)."""
     check = "certified"  # ``_suite_problems`` loads every scene under it
     report.add(
         f"## The shipped suite: escape rates over {n_restarts} seeds (preset A, {check} "
