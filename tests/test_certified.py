@@ -244,3 +244,31 @@ def test_certified_is_the_default_and_sampled_results_say_so():
     assert ("not certified" in sampled.summary()) == (not sampled.certified)
     # a sampled answer the certified check does not prove free says so
     assert "not certified" in sampled._replace(certified=False).summary()
+
+
+def test_a_spare_keeps_the_proofs_that_far_beyond_the_margin(case2):
+    """``check(..., spare)``: a path is proved free only with its bound ``spare`` beyond the
+    margin, so what a spare proves the plain check proves too, and a search's evaluation (a
+    bar given) asks for ``search_spare``. Paths around case 2's optimum, some within a
+    hundredth of a cm of an obstacle."""
+    rng = np.random.default_rng(7)
+    optimum = np.array([66.7388, -28.1028, -9.8855], np.float32)
+    x = (optimum + rng.normal(0.0, 0.5, (200, 3))).astype(np.float32)
+    check = jit(lambda arrays, x, spare: certified.check(case2.spec, arrays, x, spare=spare))
+    plain, spared = check(case2.arrays, x, 0.0), check(case2.arrays, x, 0.005)
+    free, free_spared = np.asarray(plain.free), np.asarray(spared.free)
+    assert not np.any(free_spared & ~free)
+    assert np.all(np.asarray(spared.clearance)[free_spared] >= 0.005)
+    lost = free & ~free_spared
+    assert lost.sum() >= 3 and free_spared.sum() >= 20, (lost.sum(), free_spared.sum())
+    # undecided within the tolerance of the spare, not split until the budget runs out
+    assert not np.any(np.asarray(spared.exhausted)[lost])
+    assert np.all(np.asarray(plain.clearance)[lost] < 0.005 + 0.01)  # + certify_tol
+    # a search's evaluation: the same violations as the check with the search's spare
+    spare = certified.search_spare(case2.arrays.lengths)
+    assert 1e-5 < float(spare) < 1e-3
+    no_bar = (np.full(200, -np.inf, np.float32), np.zeros(200, bool))
+    searched = jit(lambda arrays, x: jaxarm.checks.evaluate.evaluate(case2.spec, arrays, x,
+                                                                    no_bar))(case2.arrays, x)
+    np.testing.assert_array_equal(np.asarray(searched.violation),
+                                  np.asarray(check(case2.arrays, x, spare).violation))

@@ -268,3 +268,63 @@ def test_piece_bounds_hold_on_a_dense_grid(rng, degree, bound_fn):
             assert np.all(true >= bound - 1e-6), (true - bound).min()
             proved += np.sum(bound > 0)
     assert proved > 100, proved
+
+
+def test_the_turning_line_bound_is_a_lower_bound_on_the_swept_patch(rng):
+    """``_Patch``'s line bound: never above shapely's distance from the segment at 2001 times
+    of its linear motion, for circles (less the radius) and boxes, and it proves most
+    patches that stay apart from their obstacle."""
+    n = 400
+    near = rng.normal(0, 20, (n, 2))
+    far = near + rng.normal(0, 20, (n, 2))
+    near_step, far_step = (rng.normal(0, 1, (n, 2)) * rng.uniform(0, 8, (n, 1))
+                           for _ in range(2))
+    centre, radius = rng.normal(0, 25, (n, 2)), rng.uniform(0.5, 5, n)
+    half = rng.uniform(1, 10, (n, 2))
+    corners = [centre + half * np.array(sign) for sign in [(-1, -1), (1, -1), (1, 1), (-1, 1)]]
+    with jax.enable_x64(True):  # float64, so the comparison is the bound's, not rounding's
+        patch = collision._Patch(*(tuple(jnp.asarray(a[:, c]) for c in range(2))
+                                   for a in (near, far, near_step, far_step)))
+        circle = np.asarray(collision._line_gap(*patch.line_sides(*centre.T))) - radius
+        sides = [patch.line_sides(*c.T) for c in corners]
+        box = np.asarray(collision._line_gap(
+            functools.reduce(jnp.minimum, [s[0] for s in sides]),
+            functools.reduce(jnp.maximum, [s[1] for s in sides]), sides[0][2]))
+    times = np.linspace(-1, 1, 2001)
+    checked = {"circle": [0, 0], "box": [0, 0]}
+    for i in range(n):
+        segments = shapely.linestrings(np.stack(
+            [near[i] + times[:, None] * near_step[i], far[i] + times[:, None] * far_step[i]], 1))
+        for name, ours, obstacle, less in (
+                ("circle", circle[i], shapely.Point(centre[i]), radius[i]),
+                ("box", box[i], shapely.Polygon([c[i] for c in corners]), 0.0)):
+            oracle = shapely.distance(segments, obstacle).min() - less
+            assert ours <= oracle + 1e-9, (name, i, ours, oracle)
+            if oracle > 1.0:
+                checked[name][0] += 1
+                checked[name][1] += ours > 0
+    for name, (apart, proved) in checked.items():
+        assert apart > 100 and proved > 0.5 * apart, (name, apart, proved)
+
+
+@pytest.mark.parametrize("obstacle", ["circle", "triangle"])
+def test_a_link_turning_beside_an_obstacle_is_proved_where_its_hull_overlaps_it(obstacle):
+    """A link of 30 cm turning by +/- 0.1 rad about its middle, 0.5 cm beside a circle (or a
+    triangle's corner) there: the hull of its end points' motion covers the obstacle, yet with
+    the turning line the gap is nearly the 0.5 cm the link keeps."""
+    gap = 0.5
+    world = (jaxarm.World(circles=[(15.0, -gap - 2.0, 2.0)]) if obstacle == "circle" else
+             jaxarm.World(polygons=[[(15.0, -gap), (13.0, -gap - 4.0), (17.0, -gap - 4.0)]])
+             ).pack((1, 1, 4))
+    # one joint turning at rate 0.1 rad per unit r about the link's middle: near end (0, 0)
+    # moves down as the far end (30, 0) moves up; a piece of radius 1
+    corners = [(jnp.float32(0.0), jnp.float32(1.5)), (jnp.float32(0.0), jnp.float32(-1.5)),
+               (jnp.float32(30.0), jnp.float32(-1.5)), (jnp.float32(30.0), jnp.float32(1.5))]
+    hull = float(collision.hull_separation(world, corners))
+    patch = collision._Patch((jnp.float32(0.0), jnp.float32(0.0)),
+                             (jnp.float32(30.0), jnp.float32(0.0)),
+                             (jnp.float32(0.0), jnp.float32(-1.5)),
+                             (jnp.float32(0.0), jnp.float32(1.5)))
+    with_line = float(collision.hull_separation(world, corners, patch=patch))
+    assert hull < 0 < with_line <= gap + 1e-5
+    assert with_line > 0.95 * gap

@@ -387,8 +387,8 @@ def _empty_verdict(shape, dtype) -> _Verdict:
                     proved=jnp.full(shape, jnp.inf, dtype), violation=jnp.zeros(shape, dtype))
 
 
-def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int,
-            n_lanes: int) -> _Verdict:
+def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, proof_margin,
+            budget: int, n_lanes: int) -> _Verdict:
     """Stage 2: bisect the failing windows of the paths ``work_rows[:n_work]``.
 
     Each lane walks one path's pieces depth first (sample windows in order; a piece that must
@@ -400,6 +400,8 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
     Args:
       motion: all paths, x of shape (B, n_free).
       work: the failing windows and the rows to bisect.
+      margin: a piece centre closer than this is a witness.
+      proof_margin: what a free piece keeps (``check``'s margin plus spare).
       budget: pieces a path tests before none of its pieces is split.
       n_lanes: paths in flight.
 
@@ -448,7 +450,7 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
         test = jax.lax.cond(
             lanes.active.any(),
             lambda: _test_pieces(_Motion(lengths, world, start, goal, lanes.x), piece, tables,
-                                 step, margin),
+                                 step, proof_margin),
             lambda: _PieceTest(*(jnp.zeros(n_lanes, dtype),) * 5))
         shortfall, nearest, radius = test.shortfall, test.nearest, test.radius
         # Pieces wholly outside [0, 1] (before r = 0 or after r = 1) need no test.
@@ -459,7 +461,8 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
         tested = lanes.active & ~outside
         free = shortfall <= 0
         witness = tested & ~(nearest >= margin)  # NaN counts as a witness
-        undecided = tested & ~free & ~witness & (nearest - margin < tol) & (shortfall < tol)
+        undecided = (tested & ~free & ~witness & (nearest - proof_margin < tol)
+                     & (shortfall < tol))
         split = tested & ~free & ~witness & ~undecided
         count = verdict.tested + tested
         exhausted = split & ((piece.level >= MAX_LEVELS) | (count >= budget))
@@ -475,7 +478,7 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
         # Descend: to the level where one of the bounds should fit inside the clearance
         # (the speed bound shrinks about linearly with the radius, the sweep bound about
         # quadratically), leaving right siblings pending.
-        clear = jnp.maximum(nearest - margin, tol)
+        clear = jnp.maximum(nearest - proof_margin, tol)
         jump = jnp.minimum(
             jnp.ceil(jnp.log2(1.0 + jnp.maximum(test.first_order, 0.0) / clear)),
             jnp.ceil(0.5 * jnp.log2(1.0 + jnp.maximum(test.second_order, 0.0) / clear)))
@@ -531,8 +534,21 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, budget: int
     return out
 
 
-def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None,
-          free_only=None) -> CertifiedCheck:
+def search_spare(lengths):
+    """cm, shape (): what a search's proofs keep beyond the margin (``check``'s ``spare``):
+    2**-20 times the arm's reach, about ten float32 spacings there.
+
+    A search's check and ``certify`` are separately compiled programs whose float32 rounding
+    differs (by about 1e-5 cm on an arm of 80 cm), and a swarm drives its best paths to the
+    edge of what its check proves: without a spare, ``certify`` found 2 of five-link-detour's
+    200 best paths undecided, a piece's bound 3e-6 cm short (``benchmarks/RESULTS.md``,
+    *Decisions and negative results*, "A search's proofs keep a spare").
+    """
+    return 2.0**-20 * jnp.sum(lengths)
+
+
+def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None, free_only=None,
+          spare=0.0) -> CertifiedCheck:
     """The certified check of paths (module docstring).
 
     Args:
@@ -545,6 +561,9 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None,
       free_only: optional, shape (B,), bool: paths whose bisection stops at the first piece
         that is not free (a witness or undecided): only whether they are free matters, and
         their violation is what was found by then.
+      spare: cm (may be traced), below ``certify_tol``: a window or piece is proved free only
+        when its bound keeps the margin plus ``spare``, and one within the tolerance of that
+        is undecided (``search_spare``: what a search asks for).
 
     Returns:
       ``CertifiedCheck`` of arrays of shape (B,).
@@ -556,13 +575,15 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None,
     step = 1.0 / (n_samples - 1)
     tol = jnp.asarray(arrays.certify_tol, dtype)
     margin = jnp.asarray(arrays.margin, dtype)
+    proof_margin = margin + jnp.asarray(spare, dtype)  # what the proofs keep
     nearest, closest = path.run_fold(_nearest_fold(lengths, world, x), start, goal, x, degree,
                                      n_samples)
     sample_witness = ~(nearest >= 0)
     unproved = ~sample_witness & (False if prove is None else ~prove)
     open_ = ~sample_witness & ~unproved
     windows = _compacted_window_pass(motion, jnp.argsort(~open_, stable=True).astype(jnp.int32),
-                                     open_.sum(dtype=jnp.int32), degree, n_samples, margin)
+                                     open_.sum(dtype=jnp.int32), degree, n_samples,
+                                     proof_margin)
     needs_work = open_ & (windows.failing != 0).any(axis=1)
 
     work_rows = jnp.argsort(~needs_work, stable=True).astype(jnp.int32)
@@ -570,7 +591,8 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None,
     stop_early = jnp.zeros(x.shape[:1], bool) if free_only is None else free_only
     bisect = functools.partial(
         _bisect, motion, _Work(windows.failing, closest, stop_early, work_rows, n_work),
-        jnp.asarray(_derivative_tables(degree, n_samples), dtype), step, tol, margin, budget)
+        jnp.asarray(_derivative_tables(degree, n_samples), dtype), step, tol, margin,
+        proof_margin, budget)
     few, many = min(FEW_LANES, x.shape[0]), min(_wide_lanes(), x.shape[0])
     if few == many:
         out = bisect(many)
@@ -586,7 +608,7 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None,
                           jnp.where(unproved, jnp.inf, jnp.where(needs_work, open_pieces, 0.0)))
     proved = jnp.minimum(-windows.worst_passed, jnp.where(needs_work, out.proved, jnp.inf))
     seen = jnp.where(decided, jnp.minimum(nearest, out.nearest), nearest)
-    clearance = jnp.where(free, margin + proved, seen)
+    clearance = jnp.where(free, proof_margin + proved, seen)
     return CertifiedCheck(violation=violation, free=free, colliding=colliding,
                           clearance=clearance, exhausted=exhausted,
                           pieces=jnp.where(needs_work, out.tested, 0))

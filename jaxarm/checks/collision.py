@@ -309,7 +309,9 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
             (x - radius * vx, y - radius * vy), (x + radius * vx, y + radius * vy),
             (next_x + radius * next_vx, next_y + radius * next_vy),
             (next_x - radius * next_vx, next_y - radius * next_vy)],
-            circle_distances=(world_lib.circle_slots(x, y, next_x, next_y, world), spread))
+            circle_distances=(world_lib.circle_slots(x, y, next_x, next_y, world), spread),
+            patch=_Patch((x, y), (next_x, next_y), (radius * vx, radius * vy),
+                         (radius * next_vx, radius * next_vy)))
         shortfalls.append(0.5 * radius * radius * motion.acceleration - (hull - margin))
     return shortfalls
 
@@ -318,7 +320,7 @@ _CORNER_PAIRS = tuple(itertools.combinations(range(4), 2))  # every hull edge is
 
 
 @rank_promotion_allowed
-def hull_separation(world, corners: list, circle_distances=None):
+def hull_separation(world, corners: list, circle_distances=None, patch=None):
     """A lower bound on the signed distance from the convex hull of four points to the nearest
     obstacle (cm; negative where they may overlap: at most minus the penetration depth);
     +inf without obstacles.
@@ -351,6 +353,12 @@ def hull_separation(world, corners: list, circle_distances=None):
         axes.append((nx, ny, *_projection_range(nx, ny, corners)))
     nearest = jnp.full(corners[0][0].shape, jnp.inf, dtype)
     circles = jnp.asarray(world.circles, dtype)
+
+    def circle_gap(px, py, radius):
+        gap = _circle_gap(px, py, radius, axes, corners)
+        if patch is None:
+            return gap
+        return jnp.maximum(gap, _line_gap(*patch.line_sides(px, py)) - radius)
     if circle_distances is not None and circles.shape[0] > 1:
         distances, spread = circle_distances
         # the nearest circle, picked slot by slot (a stacked argmin compiled to a scalar loop)
@@ -362,11 +370,11 @@ def hull_separation(world, corners: list, circle_distances=None):
             others = jnp.minimum(others, jnp.maximum(closest, distances[i]))
             closest = jnp.minimum(closest, distances[i])
         nearest = jnp.minimum(  # empty slots have distance inf: none nearest if all are
-            jnp.where(closest < jnp.inf, _circle_gap(*picked, axes, corners), jnp.inf),
+            jnp.where(closest < jnp.inf, circle_gap(*picked), jnp.inf),
             others - spread)
     else:
         for i in range(circles.shape[0]):
-            gap = _circle_gap(circles[i, 0], circles[i, 1], circles[i, 2], axes, corners)
+            gap = circle_gap(circles[i, 0], circles[i, 1], circles[i, 2])
             nearest = jnp.minimum(nearest, jnp.where(world.circle_valid[i], gap, jnp.inf))
     if world.vertices.shape[0]:
         slots = functools.partial(world_lib.leading_slots, ndim=corners[0][0].ndim)
@@ -390,6 +398,15 @@ def hull_separation(world, corners: list, circle_distances=None):
             highest = functools.reduce(jnp.maximum, [jnp.where(ok, a, -jnp.inf)
                                                      for a, ok in zip(along, valid)])
             gap = jnp.maximum(gap, jnp.maximum(lowest - high, low - highest))
+        if patch is not None:  # every vertex on one side of the link's turning line
+            lowest = highest = longest = None
+            for v in range(vertices.shape[1]):
+                low, high, longest = patch.line_sides(slots(vertices[:, v, 0]),
+                                                      slots(vertices[:, v, 1]))
+                low, high = jnp.where(valid[v], low, jnp.inf), jnp.where(valid[v], high, -jnp.inf)
+                lowest = low if lowest is None else jnp.minimum(lowest, low)
+                highest = high if highest is None else jnp.maximum(highest, high)
+            gap = jnp.maximum(gap, _line_gap(lowest, highest, longest))
         nearest = jnp.minimum(nearest, jnp.where(slots(world.polygon_valid), gap,
                                                  jnp.inf).min(axis=0))
     return nearest
@@ -414,6 +431,47 @@ def _circle_gap(px, py, radius, axes: list, corners: list):
     gaps.append(jnp.where(closest > 0, functools.reduce(
         jnp.minimum, [nx * dx + ny * dy for dx, dy in offsets]) / length, -jnp.inf))
     return functools.reduce(jnp.maximum, gaps) - radius
+
+
+class _Patch(NamedTuple):
+    """A segment whose end points move linearly, ``near + t near_step`` and ``far + t
+    far_step`` for ``|t| <= 1`` (each a pair of coordinates of shape (...,)): the bilinear patch
+    a link's linear part sweeps over a piece (``sweep_shortfalls``)."""
+
+    near: tuple
+    far: tuple
+    near_step: tuple
+    far_step: tuple
+
+    def line_sides(self, px, py) -> tuple:
+        """The least and greatest of ``N(t) = D(t) x (p - near(t))`` over ``|t| <= 1``, exact
+        (``D(t) = far(t) - near(t)``; ``N(t) / |D(t)|`` is p's signed distance from the
+        segment's line), and a bound on ``|D(t)|`` there: ``(lowest, highest, longest)``."""
+        (ax, ay), (bx, by) = self.near, self.far
+        (sax, say), (sbx, sby) = self.near_step, self.far_step
+        dx, dy, ex, ey = bx - ax, by - ay, sbx - sax, sby - say
+        qx, qy = px - ax, py - ay
+        n0 = dx * qy - dy * qx
+        n1 = (ex * qy - ey * qx) - (dx * say - dy * sax)
+        n2 = -(ex * say - ey * sax)  # N(t) = n0 + n1 t + n2 t^2
+        ends_low = jnp.minimum(n0 - n1 + n2, n0 + n1 + n2)
+        ends_high = jnp.maximum(n0 - n1 + n2, n0 + n1 + n2)
+        inside = jnp.abs(n1) < 2 * jnp.abs(n2)  # the vertex t = -n1 / (2 n2) in (-1, 1)
+        vertex = n0 - n1 * n1 / (4 * jnp.where(inside, n2, 1.0))
+        lowest = jnp.where(inside & (n2 > 0), jnp.minimum(ends_low, vertex), ends_low)
+        highest = jnp.where(inside & (n2 < 0), jnp.maximum(ends_high, vertex), ends_high)
+        # |D(t)| is convex in t: largest at an end
+        longest = jnp.sqrt(jnp.maximum((dx - ex) ** 2 + (dy - ey) ** 2,
+                                       (dx + ex) ** 2 + (dy + ey) ** 2))
+        return lowest, highest, longest
+
+
+def _line_gap(lowest, highest, longest):
+    """The distance every ``N(t) / |D(t)|`` keeps from zero on one side (``_Patch.line_sides``):
+    a lower bound on the distance from the patch to the points whose sides these are, when all
+    are on one side at every t; -inf otherwise."""
+    side = jnp.maximum(lowest, -highest)
+    return jnp.where(side > 0, side / longest, -jnp.inf)
 
 
 def _projection_range(nx, ny, points: list) -> tuple:

@@ -51,7 +51,8 @@ def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x, bar=None) -> Evaluatio
         ``objective`` (the others' violation is inf unless a sample finds them colliding), and
         stops at the first piece that is not free on a path where ``free_only`` (its violation
         is then what was found so far). ``pso.Swarm.bar``: what could not change the swarm.
-        Ignored when sampled.
+        With a bar, a proof keeps ``certified.search_spare`` beyond the margin, so that
+        ``certify`` proves every path a search found free. Ignored when sampled.
 
     Returns:
       ``Evaluation`` of arrays of shape (...,).
@@ -79,9 +80,11 @@ def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows, bar=None):
             arrays.start, arrays.goal, rows, spec.degree, spec.n_samples)
     else:
         prove = free_only = None
-        if bar is not None:
+        spare = 0.0
+        if bar is not None:  # a search (``vmapped_evaluate``): what certify proves, it proves
             prove, free_only = ~(1.0 / distance <= bar[0]), bar[1]  # NaN: proved
-        check = certify_rows(spec, arrays, rows, prove, free_only)
+            spare = certified_lib.search_spare(arrays.lengths)
+        check = certify_rows(spec, arrays, rows, prove, free_only, spare)
         violation = check.violation
     if spec.with_limits:  # joint limits: their excess (rad) adds to the violation
         limits = limit_rows(spec, arrays, rows)
@@ -91,13 +94,13 @@ def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows, bar=None):
 
 
 def certify_rows(spec: ProblemSpec, arrays: ProblemArrays, rows, prove=None,
-                 free_only=None) -> certified_lib.CertifiedCheck:
+                 free_only=None, spare=0.0) -> certified_lib.CertifiedCheck:
     """The certified check (``jaxarm.checks.certified``) of paths ``rows``, shape (B, n_free)
-    (``prove``, ``free_only``: None, or shape (B,): ``certified.check``)."""
+    (``prove``, ``free_only``: None, or shape (B,); ``spare``: ``certified.check``)."""
     if rows.shape[0] == 0:  # the bisection's lanes need a path: check one, keep none
         one = certify_rows(spec, arrays, jnp.zeros((1, rows.shape[1]), rows.dtype))
         return jax.tree.map(lambda a: a[:0], one)
-    return certified_lib.check(spec, arrays, rows, prove, free_only)
+    return certified_lib.check(spec, arrays, rows, prove, free_only, spare)
 
 
 def limit_rows(spec: ProblemSpec, arrays: ProblemArrays, rows) -> limits_lib.LimitCheck:
