@@ -32,19 +32,22 @@ Three stages, all batched over paths.
    - *first order*: the exact signed distance at the centre, less the radius times a bound on
      the link's speed (the exact Taylor expansion of the joint speeds on the piece, from the
      path's derivatives of every order at the centre);
-   - *second order* (``collision.sweep_shortfalls``): the separating-axis gap between the
-     obstacles and the convex hull of the link's end points moved along their velocities
-     (the hull's exact distance from the circle nearest the link at the centre, when apart:
-     its axes include the one through the hull's nearest corner; the other circles count
-     their distance less the hull's spread), less ``radius^2 / 2`` times a bound on the
-     acceleration of the link's points. A link sweeping past an obstacle at a small
-     clearance c is proved with pieces of radius about ``sqrt(c)`` instead of c, so a path the
-     swarm drives against an obstacle costs a few pieces instead of a number growing as
-     ``1 / sqrt(c)``.
+   - *second order* (``collision.sweep_shortfalls``): a lower bound on the distance between
+     the obstacles and the link's linear motion (its end points moved along their
+     velocities), less ``radius^2 / 2`` times a bound on the acceleration of the link's
+     points. The bound is the better of two: the separating-axis gap of the convex hull of
+     the end points' motion (the hull's exact distance from the circle nearest the link at
+     the centre, when apart; the other circles count their distance less the hull's
+     spread), and how far the link's turning line stays from the circle, or from every
+     vertex of a polygon, over the piece. The hull fits a link sliding past an obstacle; the
+     line a link turning about a point beside one, where the hull covers part of the
+     obstacle. A link sweeping past an obstacle at a small clearance c is proved with
+     pieces of radius about ``sqrt(c)`` instead of c, so a path the swarm drives against an
+     obstacle costs a few pieces instead of a number growing as ``1 / sqrt(c)``.
 
    A piece ends as
 
-   - *free*: shortfall <= 0;
+   - *free*: shortfall <= 0 (a search asks for ``-search_spare``: ``check``'s ``spare``);
    - *witness*: some link is closer than the margin at the centre (penetrates, for margin 0);
    - *undecided*: no link is ``certify_tol`` clear at the centre and none can be ``certify_tol``
      deeper than the margin inside the piece (``min_k c_k < tol`` and shortfall ``< tol``);

@@ -285,9 +285,12 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     signed distance to an obstacle (minus a penetration depth when they overlap) is at least
     ``h_k - e_k``, with ``h_k`` the hull's separating-axis gap (``hull_separation``: where the
     hull overlaps the obstacle it is at most minus the hull's penetration depth, which is at
-    least the linear part's). A path that grazes an obstacle, its distance ``c + a s^2`` near
-    the closest approach, is proved with pieces of radius about ``sqrt(c / a)``: a few pieces
-    where the first-order bound (``link_shortfalls``) needs ``1 / sqrt(c)`` of them.
+    least the linear part's), or for the nearest circle and every polygon the better of that
+    and how far the patch's turning line stays from it (``_Patch``): a link turning about a
+    point beside an obstacle keeps its line's distance where its hull covers part of the
+    obstacle. A path that grazes an obstacle, its distance ``c + a s^2`` near the closest
+    approach, is proved with pieces of radius about ``sqrt(c / a)``: a few pieces where the
+    first-order bound (``link_shortfalls``) needs ``1 / sqrt(c)`` of them.
 
     Args:
       lengths, world: the problem's arrays.
@@ -342,6 +345,9 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None):
         a set within ``spread`` of every point of the hull (``world.circle_slots``; each of
         shape (...,)). Then only the nearest circle by that distance gets separating axes;
         every other circle's gap is its distance less ``spread`` (a lower bound, cheaper).
+      patch: optional ``_Patch`` whose sweep the hull holds: then the bound is on the
+        patch's distance, each tested circle's and polygon's gap the better of the hull's and
+        the patch's turning line's (``_line_gap``).
 
     Returns:
       Array of shape (...,).
