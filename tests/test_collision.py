@@ -285,11 +285,12 @@ def test_the_turning_line_bound_is_a_lower_bound_on_the_swept_patch(rng):
     with jax.enable_x64(True):  # float64, so the comparison is the bound's, not rounding's
         patch = collision._Patch(*(tuple(jnp.asarray(a[:, c]) for c in range(2))
                                    for a in (near, far, near_step, far_step)))
-        circle = np.asarray(collision._line_gap(*patch.line_sides(*centre.T))) - radius
+        circle = np.asarray(collision._line_gap(*patch.line_sides(*centre.T),
+                                                patch.longest)) - radius
         sides = [patch.line_sides(*c.T) for c in corners]
         box = np.asarray(collision._line_gap(
             functools.reduce(jnp.minimum, [s[0] for s in sides]),
-            functools.reduce(jnp.maximum, [s[1] for s in sides]), sides[0][2]))
+            functools.reduce(jnp.maximum, [s[1] for s in sides]), patch.longest))
     times = np.linspace(-1, 1, 2001)
     checked = {"circle": [0, 0], "box": [0, 0]}
     for i in range(n):

@@ -539,13 +539,14 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, proof_margi
 
 def search_spare(lengths):
     """cm, shape (): what a search's proofs keep beyond the margin (``check``'s ``spare``):
-    2**-20 times the arm's reach, about ten float32 spacings there.
+    2**-20 times the arm's reach, 8 to 16 float32 spacings there.
 
     A search's check and ``certify`` are separately compiled programs whose float32 rounding
-    differs (by about 1e-5 cm on an arm of 80 cm), and a swarm drives its best paths to the
-    edge of what its check proves: without a spare, ``certify`` found 2 of five-link-detour's
-    200 best paths undecided, a piece's bound 3e-6 cm short (``benchmarks/RESULTS.md``,
-    *Decisions and negative results*, "A search's proofs keep a spare").
+    differs (one piece's bound by 7.7e-6 cm between two of them, on an arm of 80 cm), and a
+    swarm drives its best paths to the edge of what its check proves: without a spare,
+    ``certify`` found 2 of five-link-detour's 200 best paths undecided, a piece's bound 3.2e-6
+    cm short (``benchmarks/RESULTS.md``, *Decisions and negative results*, "A search's proofs
+    keep a spare").
     """
     return 2.0**-20 * jnp.sum(lengths)
 

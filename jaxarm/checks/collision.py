@@ -308,13 +308,12 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
         (vx, vy), (next_vx, next_vy) = motion.near_velocity, motion.far_velocity
         # the hull lies within this distance of the link at the centre (``top_speed``)
         spread = radius * motion.top_speed
-        hull = hull_separation(world, [
-            (x - radius * vx, y - radius * vy), (x + radius * vx, y + radius * vy),
-            (next_x + radius * next_vx, next_y + radius * next_vy),
-            (next_x - radius * next_vx, next_y - radius * next_vy)],
+        patch = _Patch((x, y), (next_x, next_y), (radius * vx, radius * vy),
+                       (radius * next_vx, radius * next_vy))
+        hull = hull_separation(
+            world, patch.corners(),
             circle_distances=(world_lib.circle_slots(x, y, next_x, next_y, world), spread),
-            patch=_Patch((x, y), (next_x, next_y), (radius * vx, radius * vy),
-                         (radius * next_vx, radius * next_vy)))
+            patch=patch)
         shortfalls.append(0.5 * radius * radius * motion.acceleration - (hull - margin))
     return shortfalls
 
@@ -364,7 +363,7 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None):
         gap = _circle_gap(px, py, radius, axes, corners)
         if patch is None:
             return gap
-        return jnp.maximum(gap, _line_gap(*patch.line_sides(px, py)) - radius)
+        return jnp.maximum(gap, _line_gap(*patch.line_sides(px, py), patch.longest) - radius)
     if circle_distances is not None and circles.shape[0] > 1:
         distances, spread = circle_distances
         # the nearest circle, picked slot by slot (a stacked argmin compiled to a scalar loop)
@@ -405,14 +404,13 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None):
                                                      for a, ok in zip(along, valid)])
             gap = jnp.maximum(gap, jnp.maximum(lowest - high, low - highest))
         if patch is not None:  # every vertex on one side of the link's turning line
-            lowest = highest = longest = None
-            for v in range(vertices.shape[1]):
-                low, high, longest = patch.line_sides(slots(vertices[:, v, 0]),
-                                                      slots(vertices[:, v, 1]))
-                low, high = jnp.where(valid[v], low, jnp.inf), jnp.where(valid[v], high, -jnp.inf)
-                lowest = low if lowest is None else jnp.minimum(lowest, low)
-                highest = high if highest is None else jnp.maximum(highest, high)
-            gap = jnp.maximum(gap, _line_gap(lowest, highest, longest))
+            sides = [patch.line_sides(slots(vertices[:, v, 0]), slots(vertices[:, v, 1]))
+                     for v in range(vertices.shape[1])]
+            below = functools.reduce(jnp.minimum, [jnp.where(ok, side[0], jnp.inf)
+                                                   for side, ok in zip(sides, valid)])
+            above = functools.reduce(jnp.maximum, [jnp.where(ok, side[1], -jnp.inf)
+                                                   for side, ok in zip(sides, valid)])
+            gap = jnp.maximum(gap, _line_gap(below, above, patch.longest))
         nearest = jnp.minimum(nearest, jnp.where(slots(world.polygon_valid), gap,
                                                  jnp.inf).min(axis=0))
     return nearest
@@ -449,10 +447,27 @@ class _Patch(NamedTuple):
     near_step: tuple
     far_step: tuple
 
+    def corners(self) -> list:
+        """The end points at t = -1 and 1, whose convex hull holds the patch: four (x, y)."""
+        (ax, ay), (bx, by) = self.near, self.far
+        (sax, say), (sbx, sby) = self.near_step, self.far_step
+        return [(ax - sax, ay - say), (ax + sax, ay + say), (bx + sbx, by + sby),
+                (bx - sbx, by - sby)]
+
+    @property
+    def longest(self) -> jax.Array:
+        """A bound on ``|D(t)|`` over ``|t| <= 1`` (``line_sides``): convex in t, so largest
+        at an end."""
+        (ax, ay), (bx, by) = self.near, self.far
+        (sax, say), (sbx, sby) = self.near_step, self.far_step
+        dx, dy, ex, ey = bx - ax, by - ay, sbx - sax, sby - say
+        return jnp.sqrt(jnp.maximum((dx - ex) ** 2 + (dy - ey) ** 2,
+                                    (dx + ex) ** 2 + (dy + ey) ** 2))
+
     def line_sides(self, px, py) -> tuple:
         """The least and greatest of ``N(t) = D(t) x (p - near(t))`` over ``|t| <= 1``, exact
         (``D(t) = far(t) - near(t)``; ``N(t) / |D(t)|`` is p's signed distance from the
-        segment's line), and a bound on ``|D(t)|`` there: ``(lowest, highest, longest)``."""
+        segment's line): ``(lowest, highest)``."""
         (ax, ay), (bx, by) = self.near, self.far
         (sax, say), (sbx, sby) = self.near_step, self.far_step
         dx, dy, ex, ey = bx - ax, by - ay, sbx - sax, sby - say
@@ -466,16 +481,13 @@ class _Patch(NamedTuple):
         vertex = n0 - n1 * n1 / (4 * jnp.where(inside, n2, 1.0))
         lowest = jnp.where(inside & (n2 > 0), jnp.minimum(ends_low, vertex), ends_low)
         highest = jnp.where(inside & (n2 < 0), jnp.maximum(ends_high, vertex), ends_high)
-        # |D(t)| is convex in t: largest at an end
-        longest = jnp.sqrt(jnp.maximum((dx - ex) ** 2 + (dy - ey) ** 2,
-                                       (dx + ex) ** 2 + (dy + ey) ** 2))
-        return lowest, highest, longest
+        return lowest, highest
 
 
 def _line_gap(lowest, highest, longest):
-    """The distance every ``N(t) / |D(t)|`` keeps from zero on one side (``_Patch.line_sides``):
-    a lower bound on the distance from the patch to the points whose sides these are, when all
-    are on one side at every t; -inf otherwise."""
+    """The distance every ``N(t) / |D(t)|`` keeps from zero on one side (``_Patch.line_sides``,
+    ``longest`` its ``_Patch.longest``): a lower bound on the distance from the patch to the
+    points whose sides these are, when all are on one side at every t; -inf otherwise."""
     side = jnp.maximum(lowest, -highest)
     return jnp.where(side > 0, side / longest, -jnp.inf)
 

@@ -81,7 +81,7 @@ def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows, bar=None):
     else:
         prove = free_only = None
         spare = 0.0
-        if bar is not None:  # a search (``vmapped_evaluate``): what certify proves, it proves
+        if bar is not None:  # a search: its proofs keep a spare (``certified.search_spare``)
             prove, free_only = ~(1.0 / distance <= bar[0]), bar[1]  # NaN: proved
             spare = certified_lib.search_spare(arrays.lengths)
         check = certify_rows(spec, arrays, rows, prove, free_only, spare)
