@@ -142,7 +142,7 @@ def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch):
     one_chunk_narrow = jaxarm.certify(problem, x)._asdict()
     one_chunk_narrow["violation"] = jaxarm.violation(problem, x)
     monkeypatch.setattr(certified, "WINDOW_CHUNK", 16)
-    monkeypatch.setattr(certified, "_wide_lanes", lambda: 128)  # as on an accelerator
+    monkeypatch.setattr(certified, "LANES", 128)  # a wide loop, narrower
     monkeypatch.setattr(certified, "FEW_PATHS", -1)  # always the wide loop
     # compiled as ``certify`` is: the problem's arrays as arguments (as constants they were
     # folded into the program, and the clearances differed in their last bits)

@@ -60,9 +60,10 @@ Three stages, all batched over paths.
    undecided piece too. Each lane of a loop walks one path's pieces
    depth first and takes the next path when done, so the work grows with the pieces that need
    it, not with a fixed budget per path. The loop runs until its slowest path is decided, so
-   few lanes suit few paths: on CPU it has ``FEW_LANES`` lanes; on an accelerator
-   ``FEW_LANES`` when at most ``FEW_PATHS`` paths need bisecting, ``LANES`` otherwise (that
-   choice compiles the loop twice; tested on a GPU with 128 wide lanes). No piece of a path is
+   few lanes suit few paths: it has ``FEW_LANES`` lanes when at most ``FEW_PATHS`` paths
+   need bisecting, ``LANES`` otherwise (that choice compiles the loop twice, so a batch of at
+   most ``FEW_PATHS`` paths compiles the narrow loop only; the wide one is tested on CPU and on
+   a GPU with 128 lanes). No piece of a path is
    split once the path has tested ``budget`` pieces (pieces that need no split are still
    tested), and pieces stop at ``MAX_LEVELS`` halvings; a path that needs a split past either is
    *exhausted*: neither free nor colliding, and counted (``Certificate.exhausted``).
@@ -106,7 +107,7 @@ from jaxarm.model import world as world_lib
 from jaxarm.model.problem import ProblemArrays, ProblemSpec
 
 MAX_LEVELS = 22  # halvings of a sample window; offsets stay exact integers in float32
-LANES = 1024  # paths bisected at once on an accelerator ...
+LANES = 1024  # paths bisected at once ...
 FEW_LANES, FEW_PATHS = 64, 2048  # ... or FEW_LANES at a time when at most FEW_PATHS need it
 WINDOW_CHUNK = 1024  # paths per call of the window pass (``_compacted_window_pass``)
 # Pieces per path: the count shares an int32 with three flags, and a path can test a few more
@@ -199,11 +200,6 @@ def _window_pass(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
     return path.SampleFold(init=_no_windows(x.shape[:-1], x.dtype, n_samples), step=add_sample,
                            finish=lambda carry: record(carry, jnp.int32(n_samples - 1)),
                            max_order=0)
-
-
-def _wide_lanes() -> int:
-    """``LANES`` on an accelerator, ``FEW_LANES`` on CPU (module docstring, stage 2)."""
-    return FEW_LANES if jax.default_backend() == "cpu" else LANES
 
 
 def _nearest_fold(lengths, world, x) -> path.SampleFold:
@@ -597,10 +593,12 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None, free_only=Non
         _bisect, motion, _Work(windows.failing, closest, stop_early, work_rows, n_work),
         jnp.asarray(_derivative_tables(degree, n_samples), dtype), step, tol, margin,
         proof_margin, budget)
-    few, many = min(FEW_LANES, x.shape[0]), min(_wide_lanes(), x.shape[0])
-    if few == many:
-        out = bisect(many)
+    few, many = min(FEW_LANES, x.shape[0]), min(LANES, x.shape[0])
+    if few == many or x.shape[0] <= FEW_PATHS:  # never more than FEW_PATHS to bisect
+        out = bisect(few)
     else:  # a wide loop runs as long as its slowest path: for a few paths, a narrow one
+        # (on CPU too: per piece, a wide step costs less than a narrow one; benchmarks/
+        # RESULTS.md, Decisions and negative results, "The wide bisection loop on CPU too")
         out = jax.lax.cond(n_work <= FEW_PATHS, lambda: bisect(few), lambda: bisect(many))
 
     exhausted = needs_work & out.exhausted
