@@ -143,7 +143,7 @@ def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch):
     one_chunk_narrow["violation"] = jaxarm.violation(problem, x)
     monkeypatch.setattr(certified, "WINDOW_CHUNK", 16)
     monkeypatch.setattr(certified, "LANES", 128)  # a wide loop, narrower
-    monkeypatch.setattr(certified, "FEW_PATHS", -1)  # always the wide loop
+    monkeypatch.setattr(certified, "_few_paths", lambda: -1)  # always the wide loop
     # compiled as ``certify`` is: the problem's arrays as arguments (as constants they were
     # folded into the program, and the clearances differed in their last bits)
     chunked_wide = jit(lambda arrays, x: certified.check(problem.spec, arrays, x))(arrays, x)

@@ -61,9 +61,10 @@ Three stages, all batched over paths.
    depth first and takes the next path when done, so the work grows with the pieces that need
    it, not with a fixed budget per path. The loop runs until its slowest path is decided, so
    few lanes suit few paths: it has ``FEW_LANES`` lanes when at most ``FEW_PATHS`` paths
-   need bisecting, ``LANES`` otherwise (that choice compiles the loop twice, so a batch of at
-   most ``FEW_PATHS`` paths compiles the narrow loop only; the wide one is tested on CPU and on
-   a GPU with 128 lanes). No piece of a path is
+   need bisecting (``FEW_PATHS_CPU`` on CPU, where a wide step costs far more than a narrow
+   one), ``LANES`` otherwise (that choice compiles the loop twice, so a batch of at most that
+   many paths compiles the narrow loop only; the wide one is tested on CPU and on a GPU with
+   128 lanes). No piece of a path is
    split once the path has tested ``budget`` pieces (pieces that need no split are still
    tested), and pieces stop at ``MAX_LEVELS`` halvings; a path that needs a split past either is
    *exhausted*: neither free nor colliding, and counted (``Certificate.exhausted``).
@@ -108,7 +109,8 @@ from jaxarm.model.problem import ProblemArrays, ProblemSpec
 
 MAX_LEVELS = 22  # halvings of a sample window; offsets stay exact integers in float32
 LANES = 1024  # paths bisected at once ...
-FEW_LANES, FEW_PATHS = 64, 2048  # ... or FEW_LANES at a time when at most FEW_PATHS need it
+FEW_LANES = 64  # ... or FEW_LANES at a time when at most ``_few_paths()`` need it:
+FEW_PATHS, FEW_PATHS_CPU = 2048, 4096  # on an accelerator, on CPU
 WINDOW_CHUNK = 1024  # paths per call of the window pass (``_compacted_window_pass``)
 # Pieces per path: the count shares an int32 with three flags, and a path can test a few more
 # than its budget (the first piece of each failing window left, and the pending siblings).
@@ -200,6 +202,13 @@ def _window_pass(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
     return path.SampleFold(init=_no_windows(x.shape[:-1], x.dtype, n_samples), step=add_sample,
                            finish=lambda carry: record(carry, jnp.int32(n_samples - 1)),
                            max_order=0)
+
+
+def _few_paths() -> int:
+    """The most paths the narrow bisection loop takes (module docstring, stage 2): on CPU a
+    wide loop pays for its idle lanes, so it waits for more work (``benchmarks/RESULTS.md``,
+    *Decisions and negative results*, "The wide bisection loop on CPU too")."""
+    return FEW_PATHS_CPU if jax.default_backend() == "cpu" else FEW_PATHS
 
 
 def _nearest_fold(lengths, world, x) -> path.SampleFold:
@@ -594,12 +603,11 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None, free_only=Non
         jnp.asarray(_derivative_tables(degree, n_samples), dtype), step, tol, margin,
         proof_margin, budget)
     few, many = min(FEW_LANES, x.shape[0]), min(LANES, x.shape[0])
-    if few == many or x.shape[0] <= FEW_PATHS:  # never more than FEW_PATHS to bisect
+    few_paths = _few_paths()
+    if few == many or x.shape[0] <= few_paths:  # never more than few_paths to bisect
         out = bisect(few)
     else:  # a wide loop runs as long as its slowest path: for a few paths, a narrow one
-        # (on CPU too: per piece, a wide step costs less than a narrow one; benchmarks/
-        # RESULTS.md, Decisions and negative results, "The wide bisection loop on CPU too")
-        out = jax.lax.cond(n_work <= FEW_PATHS, lambda: bisect(few), lambda: bisect(many))
+        out = jax.lax.cond(n_work <= few_paths, lambda: bisect(few), lambda: bisect(many))
 
     exhausted = needs_work & out.exhausted
     decided = needs_work & ~exhausted
