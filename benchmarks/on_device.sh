@@ -4,11 +4,11 @@
 # study's time up to 10,000 restarts (benchmarks/escape_bench.py), the certified search beside
 # the sampled one on paper-case-1 (benchmarks/certified_speed.py, 200 restarts: its dense shapely
 # oracle runs on the CPU, about 0.2 s per path) and the certified check's tests on the GPU, where
-# its bisection runs 1024 lanes when more than 2048 paths need it (64 on CPU). Each step has
-# its own time limit (575 s in all: a device command may run 600; on an H200 at commit 7eae425
-# the steps took 2 / 99 s, the escape step ran out of 100 s (alone: 104 s), the certified one
-# out of 90 s just after its table, and the tests 213 s) and its log in $OUT; a step that fails
-# or runs out of time does not stop the next.
+# its bisection runs 1024 lanes when more than 2048 paths need it (4096 on CPU). Each step has
+# its own time limit (580 s in all: a device command may run 600; on an H200 at commit 7eae425
+# the steps took 2 s and 99 s (throughput at 5 repeats, now 3), the escape step ran out of 100
+# s (alone: 104 s), the certified one out of 90 s just after its table, and the tests 213 s)
+# and its log in $OUT; a step that fails or runs out of time does not stop the next.
 #
 #   benchmarks/on_device.sh prepare   # here, first: wheels the image lacks, into .whl/
 #   benchmarks/on_device.sh           # there: device tool, carry [".whl"], timeout_s 590
@@ -38,7 +38,7 @@ if [ -n "${QUICK:-}" ]; then
   certified=(--restarts 16 --repeats 1 --scenarios paper-case-1)
 else
   batch=(--max-batch 1000000 --certified-max-batch 1000000 --numpy-max-batch 10000
-         --repeats 5)
+         --repeats 3)
   restarts=(--repeats 3 --max-restarts 10000)
   tests=(tests/test_certified.py)
   certified=(--restarts 200 --repeats 3 --scenarios paper-case-1)
@@ -57,8 +57,8 @@ step() {  # name, seconds, command...: the command's output into $OUT/name.log a
 
 step devices 20 bash -c "nvidia-smi -L; $PYTHON -c 'import jax, jaxarm; \
 print(\"jax\", jax.__version__, jax.devices(), \"jaxarm\", jaxarm.__version__)'"
-step throughput 105 "$PYTHON" benchmarks/throughput.py "${batch[@]}"
+step throughput 90 "$PYTHON" benchmarks/throughput.py "${batch[@]}"
 step escape 115 "$PYTHON" benchmarks/escape_bench.py "${restarts[@]}"
-step certified 105 "$PYTHON" benchmarks/certified_speed.py "${certified[@]}"
-step tests 230 env JAX_PLATFORMS="$platform" "$PYTHON" -m pytest -q -p no:cacheprovider \
+step certified 110 "$PYTHON" benchmarks/certified_speed.py "${certified[@]}"
+step tests 245 env JAX_PLATFORMS="$platform" "$PYTHON" -m pytest -q -p no:cacheprovider \
   "${tests[@]}"

@@ -131,26 +131,38 @@ def test_small_certify_batches_share_one_program_and_agree_with_a_large_one(rng)
     assert jaxarm.certify(problem, x[:0]).free.shape == (0,)
 
 
-def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch):
+@pytest.mark.parametrize("scene", ["thin-wall", "paper-case-1"])
+def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch, scene):
     """The window pass over the paths without a witness at a sample, in chunks, and the
-    bisection, narrow or wide, give every path the same verdict as one chunk and one loop."""
-    problem = thin_wall_problem(rng)
+    bisection in either of its loops, give every path the same verdict as one chunk and the
+    narrow loop. Thin-wall's random paths run several window chunks; case 1's paths near the
+    paper's need the bisection, more of them than the second loop has lanes."""
+    if scene == "thin-wall":
+        problem = thin_wall_problem(rng)
+        x = rng.uniform(-10, 10, (200, problem.n_free)).astype(np.float32)
+    else:
+        problem = jaxarm.load_scenario(scene)
+        near = a6_array(published.CASE_1)[rng.integers(0, len(published.CASE_1), 200)]
+        x = (near + rng.normal(0.0, 0.3, near.shape)).astype(np.float32)
     arrays = problem.arrays
-    x = rng.uniform(-10, 10, (200, problem.n_free)).astype(np.float32)
-    # One chunk and one narrow loop: 200 paths (padded to 256) < WINDOW_CHUNK, fewer than
-    # FEW_PATHS to bisect; the one program of the dense check and of the test above.
+    # One chunk and one narrow loop: 200 paths (padded to 256) < WINDOW_CHUNK, at most
+    # ``_few_paths()``: only the narrow loop is compiled (thin-wall: the one program of the
+    # dense check and of the test above).
     one_chunk_narrow = jaxarm.certify(problem, x)._asdict()
     one_chunk_narrow["violation"] = jaxarm.violation(problem, x)
+    lanes = 16
     monkeypatch.setattr(certified, "WINDOW_CHUNK", 16)
-    monkeypatch.setattr(certified, "LANES", 128)  # a wide loop, narrower
-    monkeypatch.setattr(certified, "_few_paths", lambda: -1)  # always the wide loop
+    monkeypatch.setattr(certified, "LANES", lanes)  # the other loop, refilling its lanes
+    monkeypatch.setattr(certified, "_few_paths", lambda: -1)  # always the other loop
     # compiled as ``certify`` is: the problem's arrays as arguments (as constants they were
     # folded into the program, and the clearances differed in their last bits)
-    chunked_wide = jit(lambda arrays, x: certified.check(problem.spec, arrays, x))(arrays, x)
+    chunked_other = jit(lambda arrays, x: certified.check(problem.spec, arrays, x))(arrays, x)
     assert np.sum(~one_chunk_narrow["colliding"]) > 3 * 16  # several chunks ran
     assert np.sum(one_chunk_narrow["free"]) > 10
+    if scene == "paper-case-1":
+        assert np.sum(np.asarray(chunked_other.pieces) > 0) > lanes
     for name, value in one_chunk_narrow.items():
-        np.testing.assert_array_equal(value, np.asarray(getattr(chunked_wide, name)),
+        np.testing.assert_array_equal(value, np.asarray(getattr(chunked_other, name)),
                                       err_msg=name)
 
 
