@@ -63,8 +63,8 @@ Three stages, all batched over paths.
    few lanes suit few paths: it has ``FEW_LANES`` lanes when at most ``FEW_PATHS`` paths
    need bisecting (``FEW_PATHS_CPU`` on CPU, where idle lanes cost as much as busy ones),
    ``LANES`` otherwise. Both loops are compiled, except for a batch of at most that many
-   paths, which can only need the narrow one; the wide one is tested on CPU and on a GPU
-   with 128 lanes. No piece of a path is
+   paths, which can only need the narrow one; the tests run the other loop with 16 lanes
+   (on a GPU, with 128). No piece of a path is
    split once the path has tested ``budget`` pieces (pieces that need no split are still
    tested), and pieces stop at ``MAX_LEVELS`` halvings; a path that needs a split past either is
    *exhausted*: neither free nor colliding, and counted (``Certificate.exhausted``).
@@ -206,8 +206,9 @@ def _window_pass(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
 
 def _few_paths() -> int:
     """The most paths to bisect that still get the narrow loop (module docstring, stage 2):
-    on CPU a wide loop pays for its idle lanes, so it waits for more work (``benchmarks/RESULTS.md``,
-    *Decisions and negative results*, "The wide bisection loop on CPU too")."""
+    on CPU a wide loop pays for its idle lanes, so it waits for more work
+    (``benchmarks/RESULTS.md``, *Decisions and negative results*, "The wide bisection loop on
+    CPU too")."""
     return FEW_PATHS_CPU if jax.default_backend() == "cpu" else FEW_PATHS
 
 
