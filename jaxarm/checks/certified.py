@@ -64,10 +64,9 @@ Three stages, all batched over paths.
    need bisecting (``FEW_PATHS_CPU`` on CPU, where idle lanes cost as much as busy ones),
    ``LANES`` otherwise. Both loops are compiled, except for a batch of at most that many
    paths, which can only need the narrow one; the tests run the other loop with 16 lanes
-   (on a GPU, with 128). No piece of a path is
-   split once the path has tested ``budget`` pieces (pieces that need no split are still
-   tested), and pieces stop at ``MAX_LEVELS`` halvings; a path that needs a split past either is
-   *exhausted*: neither free nor colliding, and counted (``Certificate.exhausted``).
+   (on a GPU, with 128). No piece of a path is split once the path has tested ``budget``
+   pieces (pieces that need no split are still tested), and pieces stop at ``MAX_LEVELS``
+   halvings; a path that needs a split past either is *exhausted*: neither free nor colliding, and counted (``Certificate.exhausted``).
 
 Pieces are located by integers (sample, level, offset) and expanded about their sample with
 float64 tables of the basis derivatives, so a piece far below float32's spacing of r still has

@@ -398,22 +398,26 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None):
         for nx, ny, low, high in axes:  # the hull's
             along = [nx * slots(vertices[:, v, 0]) + ny * slots(vertices[:, v, 1])
                      for v in range(vertices.shape[1])]
-            lowest = functools.reduce(jnp.minimum, [jnp.where(ok, a, jnp.inf)
-                                                    for a, ok in zip(along, valid)])
-            highest = functools.reduce(jnp.maximum, [jnp.where(ok, a, -jnp.inf)
-                                                     for a, ok in zip(along, valid)])
+            lowest, highest = _valid_range(along, along, valid)
             gap = jnp.maximum(gap, jnp.maximum(lowest - high, low - highest))
         if patch is not None:  # every vertex on one side of the link's turning line
             sides = [patch.line_sides(slots(vertices[:, v, 0]), slots(vertices[:, v, 1]))
                      for v in range(vertices.shape[1])]
-            below = functools.reduce(jnp.minimum, [jnp.where(ok, side[0], jnp.inf)
-                                                   for side, ok in zip(sides, valid)])
-            above = functools.reduce(jnp.maximum, [jnp.where(ok, side[1], -jnp.inf)
-                                                   for side, ok in zip(sides, valid)])
+            below, above = _valid_range([side[0] for side in sides],
+                                        [side[1] for side in sides], valid)
             gap = jnp.maximum(gap, _line_gap(below, above, patch.longest))
         nearest = jnp.minimum(nearest, jnp.where(slots(world.polygon_valid), gap,
                                                  jnp.inf).min(axis=0))
     return nearest
+
+
+def _valid_range(lows: list, highs: list, valid: list) -> tuple:
+    """The least of ``lows`` and the greatest of ``highs`` over a polygon's valid vertices
+    (one array per vertex, ``valid`` its edge mask): ``(inf, -inf)`` where none is valid."""
+    return (functools.reduce(jnp.minimum, [jnp.where(ok, a, jnp.inf)
+                                           for a, ok in zip(lows, valid)]),
+            functools.reduce(jnp.maximum, [jnp.where(ok, a, -jnp.inf)
+                                           for a, ok in zip(highs, valid)]))
 
 
 def _circle_gap(px, py, radius, axes: list, corners: list):
