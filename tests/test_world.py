@@ -1,6 +1,5 @@
 """Obstacles and segment-obstacle separation (``jaxarm.model.world``) against shapely."""
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -75,22 +74,6 @@ def test_segment_separation_agrees_with_shapely_on_random_worlds(rng):
         np.testing.assert_allclose(vertex_axis, exact, rtol=1e-6, atol=1e-5)
         checked += clear.sum()
     assert checked > 10_000
-
-
-def test_padded_polygon_slots_keep_every_separation_and_add_empty_ones(rng):
-    packed = jaxarm.World(boxes=[((-10.0, 5.0), (10.0, 25.0))],
-                          circles=[(30.0, 0.0, 4.0)]).pack((1, 1, 4))
-    padded = world_lib.pad_polygon_slots(packed, 3)
-    assert padded.vertices.shape == (3, 4, 2) and not np.any(padded.polygon_valid[1:])
-    assert world_lib.pad_polygon_slots(packed, 1) is packed
-    start = rng.uniform(-40, 40, (50, 2)).astype(np.float32)
-    end = start + rng.normal(0, 20, (50, 2)).astype(np.float32)
-    separation_of = jax.jit(world_lib.separation)  # not op by op
-    before = np.asarray(separation_of(start, end, packed))  # (50, 2): circle, box
-    after = np.asarray(separation_of(start, end, padded))  # (50, 4)
-    # the same numbers up to float32 rounding (XLA compiles each world's program differently)
-    np.testing.assert_allclose(after[:, :2], before, rtol=1e-6, atol=1e-5)
-    assert np.all(after[:, 2:] == np.inf)
 
 
 @pytest.mark.parametrize("offset, collides", [(0.5, True), (-0.5, False), (0.0, False)])

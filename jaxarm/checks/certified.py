@@ -66,7 +66,8 @@ Three stages, all batched over paths.
    paths, which can only need the narrow one; the tests run the other loop with 16 lanes
    (on a GPU, with 128). No piece of a path is split once the path has tested ``budget``
    pieces (pieces that need no split are still tested), and pieces stop at ``MAX_LEVELS``
-   halvings; a path that needs a split past either is *exhausted*: neither free nor colliding, and counted (``Certificate.exhausted``).
+   halvings; a path that needs a split past either is *exhausted*: neither free nor
+   colliding, and counted (``Certificate.exhausted``).
 
 Pieces are located by integers (sample, level, offset) and expanded about their sample with
 float64 tables of the basis derivatives, so a piece far below float32's spacing of r still has
@@ -297,13 +298,14 @@ class _PieceTest(NamedTuple):
     radius: jax.Array  # the piece's half-width in r
 
 
-def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin):
+def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin, busy):
     """Shortfall and nearest clearance of pieces, with tight bounds (module docstring, stage 2).
 
     Args:
       motion: each piece's path, x of shape (n, n_free).
       tables: ``_derivative_tables``, shape (n_samples, degree + 1, degree - 4).
       step: the sample spacing h.
+      busy: bool scalar (may be traced): False when no piece is to be tested (zeros then).
 
     Returns:
       ``_PieceTest`` of arrays of shape (n,).
@@ -313,33 +315,53 @@ def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin):
     degree = tables.shape[1] - 1
     scale = jnp.asarray(step / 2.0 ** (np.arange(MAX_LEVELS + 1) + 1), dtype)  # exact halvings
     radius = scale[pieces.level]
-    offset = (2 * pieces.offset + 1 - jnp.left_shift(1, pieces.level)).astype(dtype)
-    shift = offset * radius  # centre minus the sample, exact up to one rounding
-    rows = tables.astype(dtype)[pieces.sample]  # (n, degree + 1, degree - 4)
-    # Taylor coefficients of every joint about the sample, then about the centre.
-    about_sample = [path.joint_angle_list(start, goal, x, rows[:, order], order, per_path=True)
-                    for order in range(degree + 1)]
-    n_joints = len(about_sample[0])
-    about_centre = []  # about_centre[m][j] = theta_j^(m)(centre) / m!
-    for m in range(degree + 1):
-        # float: an int binomial past int32 (degree 34 and up) fails to convert in JAX
-        terms = [[float(math.comb(i, m)) * about_sample[i][j] for j in range(n_joints)]
-                 for i in range(m, degree + 1)]
-        value = terms[-1]
-        for term in reversed(terms[:-1]):  # Horner in the shift
-            value = [t + shift * v for t, v in zip(term, value)]
-        about_centre.append(value)
     # Widened by a few float32 ulps: the centre and radius are rounded once each.
     reach_radius = radius * (1.0 + 2.0**-20)
-    speed = [collision_lib.taylor_speed_bound([order[j] for order in about_centre], reach_radius)
-             for j in range(n_joints)]
-    first, nearest = collision_lib.link_shortfalls(lengths, world, about_centre[0], speed,
-                                                    reach_radius, margin, exact=True)
-    second = collision_lib.sweep_shortfalls(lengths, world, about_centre, reach_radius, margin)
-    largest = functools.partial(functools.reduce, jnp.maximum)
-    return _PieceTest(shortfall=largest([jnp.minimum(a, b) for a, b in zip(first, second)]),
-                      first_order=largest(first), second_order=largest(second),
-                      nearest=nearest, radius=radius)
+
+    def geometry():
+        offset = (2 * pieces.offset + 1 - jnp.left_shift(1, pieces.level)).astype(dtype)
+        shift = offset * radius  # centre minus the sample, exact up to one rounding
+        rows = tables.astype(dtype)[pieces.sample]  # (n, degree + 1, degree - 4)
+        # Taylor coefficients of every joint about the sample, then about the centre.
+        about_sample = [path.joint_angle_list(start, goal, x, rows[:, order], order,
+                                              per_path=True)
+                        for order in range(degree + 1)]
+        n_joints = len(about_sample[0])
+        about_centre = []  # about_centre[m][j] = theta_j^(m)(centre) / m!
+        for m in range(degree + 1):
+            # float: an int binomial past int32 (degree 34 and up) fails to convert in JAX
+            terms = [[float(math.comb(i, m)) * about_sample[i][j] for j in range(n_joints)]
+                     for i in range(m, degree + 1)]
+            value = terms[-1]
+            for term in reversed(terms[:-1]):  # Horner in the shift
+                value = [t + shift * v for t, v in zip(term, value)]
+            about_centre.append(value)
+        speed = [collision_lib.taylor_speed_bound([order[j] for order in about_centre],
+                                                  reach_radius)
+                 for j in range(n_joints)]
+        return speed, collision_lib.link_motions(lengths, about_centre, reach_radius)
+
+    def bounds(speed, motions):
+        links = [(*motion.near, *motion.far) for motion in motions]
+        first, nearest = collision_lib.link_shortfalls(lengths, world, links, speed,
+                                                        reach_radius, margin, exact=True)
+        second = collision_lib.motion_shortfalls(world, motions, reach_radius, margin)
+        largest = functools.partial(functools.reduce, jnp.maximum)
+        return _PieceTest(shortfall=largest([jnp.minimum(a, b) for a, b in zip(first, second)]),
+                          first_order=largest(first), second_order=largest(second),
+                          nearest=nearest, radius=radius)
+
+    # Two branches, taken unless no piece is to be tested (``busy`` False: zeros). XLA's CPU
+    # backend fuses a cheap elementwise producer into each of its consumers, so in one
+    # computation each of the bounds' fusions computed the pieces' Taylor shift and sines
+    # and cosines again; a branch's results are computed once (``benchmarks/RESULTS.md``,
+    # *Decisions and negative results*, "The piece test in two branches").
+    zero = jnp.zeros(x.shape[:1], dtype)
+    n_joints = start.shape[0]
+    still = collision_lib.LinkMotion.zeros(zero)
+    speed, motions = jax.lax.cond(busy, geometry,
+                                  lambda: ([zero] * n_joints, [still] * n_joints))
+    return jax.lax.cond(busy, bounds, lambda *_: _PieceTest(*(zero,) * 5), speed, motions)
 
 
 class _Verdict(NamedTuple):
@@ -420,11 +442,6 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, proof_margi
     failing_words, first_window, free_only, work_rows, n_work = work
     n_rows, dtype = x.shape[0], x.dtype
     n_samples = tables.shape[0]
-    # With one polygon slot the minimum over the slots is no reduction at all, and XLA then
-    # repeated a piece's geometry in each of the ~16 fusions that read its result. An empty
-    # second slot keeps it in one (benchmarks/RESULTS.md, Decisions and negative results, "The
-    # certified bisection computes each piece once").
-    world = world_lib.pad_polygon_slots(world, 2) if world.vertices.shape[0] == 1 else world
 
     def refill(lanes: _Lanes, next_item):
         """Give idle lanes the next paths of the work list."""
@@ -451,15 +468,8 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, proof_margi
     def test_and_advance(state):
         lanes, next_item, out = state
         piece, verdict = lanes.piece, lanes.verdict
-        # A branch, though one lane is nearly always active: XLA's CPU backend otherwise
-        # computed the pieces' Taylor shift and speed bound again inside each of the ~16
-        # fusions reading the results (benchmarks/RESULTS.md, same section); no lane reads
-        # them when none is active.
-        test = jax.lax.cond(
-            lanes.active.any(),
-            lambda: _test_pieces(_Motion(lengths, world, start, goal, lanes.x), piece, tables,
-                                 step, proof_margin),
-            lambda: _PieceTest(*(jnp.zeros(n_lanes, dtype),) * 5))
+        test = _test_pieces(_Motion(lengths, world, start, goal, lanes.x), piece, tables,
+                            step, proof_margin, lanes.active.any())
         shortfall, nearest, radius = test.shortfall, test.nearest, test.radius
         # Pieces wholly outside [0, 1] (before r = 0 or after r = 1) need no test.
         half = jnp.left_shift(1, piece.level) >> 1  # 2**(level - 1); 0 at level 0

@@ -100,9 +100,15 @@ def posture_clearance_bound(lengths, world, theta: list, exact: bool = False) ->
       A list of n_joints arrays of shape (...,); negative values are minus a penetration
       depth; +inf for a world without obstacles.
     """
+    return link_clearance_bounds(world, link_endpoints(lengths, theta), exact)
+
+
+def link_clearance_bounds(world, links: list, exact: bool = False) -> list:
+    """``posture_clearance_bound`` of links given by their end points (``link_endpoints``'s
+    tuples, each coordinate of shape (...,))."""
     bounds = []
-    for link in link_endpoints(lengths, theta):
-        nearest = jnp.full_like(theta[0], jnp.inf)
+    for link in links:
+        nearest = jnp.full_like(link[0], jnp.inf)
         if exact:
             parts = world_lib.separation_parts(*link, world)
             separations = parts.circles
@@ -156,18 +162,19 @@ def reach_matrix(lengths):
     return jnp.where(upper, reach, 0.0)
 
 
-def link_shortfalls(lengths, world, theta: list, speed: list, radius, margin=0.0,
+def link_shortfalls(lengths, world, links: list, speed: list, radius, margin=0.0,
                     exact: bool = False):
     """How far the piece ``|r - c| <= radius`` around a posture is from certified by a
     first-order bound, link by link (cm): ``([delta_k - (c_k - margin) for each link k],
     min_k c_k)``.
 
-    ``c_k`` is ``posture_clearance_bound``'s at c (``exact``: how it is bounded), ``delta_k =
-    radius sum_{j<=k} speed_j R_{jk}`` (``reach_matrix``) how far any point of link k can move
-    when ``speed_j`` bounds ``|theta_j'|`` over the piece; ``<= 0`` proves link k clear.
+    ``links`` are the links' end points at c (``link_endpoints``), ``c_k`` their
+    ``link_clearance_bounds`` (``exact``: how they are bounded), ``delta_k = radius
+    sum_{j<=k} speed_j R_{jk}`` (``reach_matrix``) how far any point of link k can move when
+    ``speed_j`` bounds ``|theta_j'|`` over the piece; ``<= 0`` proves link k clear.
     """
-    reach = reach_matrix(jnp.asarray(lengths, dtype=theta[0].dtype))
-    bounds = posture_clearance_bound(lengths, world, theta, exact)
+    reach = reach_matrix(jnp.asarray(lengths, dtype=links[0][0].dtype))
+    bounds = link_clearance_bounds(world, links, exact)
     shortfalls = [radius * sum(speed[j] * reach[j, k] for j in range(k + 1)) - (bound - margin)
                   for k, bound in enumerate(bounds)]
     return shortfalls, functools.reduce(jnp.minimum, bounds)
@@ -182,7 +189,7 @@ def taylor_speed_bound(coefficients: list, radius):
                for m in range(1, len(coefficients)))
 
 
-class _LinkMotion(NamedTuple):
+class LinkMotion(NamedTuple):
     """One link over a piece ``|r - c| <= radius``: its end points and their velocities at c
     (cm, cm per unit r; each of shape (...,)), and a bound on the acceleration of any of its
     points over the piece."""
@@ -193,6 +200,12 @@ class _LinkMotion(NamedTuple):
     far_velocity: tuple
     acceleration: jax.Array  # >= |X''(r)| for every point X of the link, |r - c| <= radius
 
+    @classmethod
+    def zeros(cls, like: jax.Array) -> "LinkMotion":
+        """A motion of zeros shaped as ``like``."""
+        zero = jnp.zeros_like(like)
+        return cls((zero, zero), (zero, zero), (zero, zero), (zero, zero), zero)
+
     @property
     def top_speed(self) -> jax.Array:
         """The faster end point's speed at c: every point of the link moves no faster than
@@ -201,8 +214,8 @@ class _LinkMotion(NamedTuple):
                                     sum(v * v for v in self.far_velocity)))
 
 
-def _link_motions(lengths, about_centre: list, radius) -> list:
-    """Every link's ``_LinkMotion`` over a piece, from the joints' Taylor coefficients about
+def link_motions(lengths, about_centre: list, radius) -> list:
+    """Every link's ``LinkMotion`` over a piece, from the joints' Taylor coefficients about
     its centre (``about_centre[m][j] = theta_j^(m)(c) / m!``).
 
     A point of link k at distance t along it is ``sum_{i<k} l_i u(phi_i) + t u(phi_k)``
@@ -225,7 +238,7 @@ def _link_motions(lengths, about_centre: list, radius) -> list:
         next_x, next_y = x + lengths[k] * cosine, y + lengths[k] * sine
         next_vx = vx - lengths[k] * phi[1][k] * sine
         next_vy = vy + lengths[k] * phi[1][k] * cosine
-        motions.append(_LinkMotion((x, y), (next_x, next_y), (vx, vy), (next_vx, next_vy),
+        motions.append(LinkMotion((x, y), (next_x, next_y), (vx, vy), (next_vx, next_vy),
                                    acceleration))
         x, y, vx, vy = next_x, next_y, next_vx, next_vy
     return motions
@@ -247,7 +260,7 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
       (``world.circle_sweep_gaps``: a link sliding along a circle loses only its speed
       towards it, where the swing, a sum of magnitudes, loses all of it), and every polygon's
       gap at the centre less ``radius`` times the faster end's speed
-      (``_LinkMotion.top_speed``). Variants that cost more than they proved:
+      (``LinkMotion.top_speed``). Variants that cost more than they proved:
       ``benchmarks/RESULTS.md``, *Decisions and negative results*, "The window pass sees the
       direction of the motion".
 
@@ -258,7 +271,7 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
              for j in range(len(about_centre[0]))]
     reach = reach_matrix(jnp.asarray(lengths, dtype=about_centre[0][0].dtype))
     shortfalls = []
-    for k, motion in enumerate(_link_motions(lengths, about_centre, radius)):
+    for k, motion in enumerate(link_motions(lengths, about_centre, radius)):
         link = (*motion.near, *motion.far)
         sweep = world_lib.Sweep(*(radius * v for v in motion.near_velocity + motion.far_velocity))
         circles, swept_circles = world_lib.circle_sweep_gaps(*link, sweep, world)
@@ -281,7 +294,7 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     Every point X of link k moves as ``X(c) + s X'(c) + E`` (``s = r - c``). The linear part
     of the whole link lies in the convex hull of its end points' four positions ``q(c) +/-
     radius q'(c)`` (a segment whose end points move linearly sweeps a bilinear patch, inside
-    that hull), and ``|E| <= e_k = radius^2 / 2 * A_k`` (``_LinkMotion``). So link k's
+    that hull), and ``|E| <= e_k = radius^2 / 2 * A_k`` (``LinkMotion``). So link k's
     signed distance to an obstacle (minus a penetration depth when they overlap) is at least
     ``h_k - e_k``, with ``h_k`` the hull's separating-axis gap (``hull_separation``: where the
     hull overlaps the obstacle it is at most minus the hull's penetration depth, which is at
@@ -302,8 +315,13 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     Returns:
       A list of n_joints arrays of shape (...,).
     """
+    return motion_shortfalls(world, link_motions(lengths, about_centre, radius), radius, margin)
+
+
+def motion_shortfalls(world, motions: list, radius, margin=0.0) -> list:
+    """``sweep_shortfalls`` of links given by their ``LinkMotion``s over the piece."""
     shortfalls = []
-    for motion in _link_motions(lengths, about_centre, radius):
+    for motion in motions:
         (x, y), (next_x, next_y) = motion.near, motion.far
         (vx, vy), (next_vx, next_vy) = motion.near_velocity, motion.far_velocity
         # the hull lies within this distance of the link at the centre (``top_speed``)

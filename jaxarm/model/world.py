@@ -468,21 +468,6 @@ def one_polygon(world: WorldArrays, slot: int) -> WorldArrays:
     return alone._replace(circles=world.circles[:0], circle_valid=world.circle_valid[:0])
 
 
-def pad_polygon_slots(world: WorldArrays, n_slots: int) -> WorldArrays:
-    """The world with empty polygon slots added up to ``n_slots`` (none removed): the same
-    separations (up to float rounding: XLA compiles the larger world's program differently)
-    and +inf for the added slots."""
-    missing = n_slots - world.vertices.shape[0]
-    if missing <= 0:
-        return world
-
-    def pad(a):
-        a = jnp.asarray(a)  # packed worlds hold NumPy arrays (float64 before jnp converts them)
-        return jnp.concatenate([a, jnp.zeros((missing,) + a.shape[1:], a.dtype)])
-
-    return _map_polygon_slots(world, pad)
-
-
 def separation_xy(sx, sy, ex, ey, world: WorldArrays):
     """Like ``separation`` for coordinates given separately, each of shape (...); returns
     shape (n_slots, ...)."""
