@@ -29,6 +29,7 @@ from jaxarm._compile.padding import on_padded_rows
 from jaxarm.checks import collision as collision_lib
 from jaxarm.checks.evaluate import vmapped_evaluate
 from jaxarm.model import path
+from jaxarm.model.arm import link_endpoints
 from jaxarm.model.problem import Problem, as_params
 
 
@@ -55,20 +56,24 @@ def surrogate(spec, arrays, x, barrier_weight, margin, temperature):
     return _surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin, temperature)
 
 
-def surrogate_gradient(spec, arrays, x, barrier_weight, margin, temperature):
+def surrogate_gradient(spec, arrays, x, barrier_weight, margin, temperature, needed=None):
     """``grad(surrogate)`` with respect to x, shape (..., n_free).
 
     The chain rule through the joint angles is written out, its sums over the samples taken in
     order: autodiff's own sums (the transpose of broadcasting x along the samples) are split
     differently for different batch sizes, and a refined row's last bits then depended on how
     many rows were refined with it.
+
+    ``needed``: optionally a bool scalar (may be traced), False when the gradient goes unused
+    (its values are then meaningless): the links' end points are computed in a branch on it
+    (``_surrogate_at_samples``).
     """
     bases = _sample_bases(spec, x.dtype)
     angle, rate = _angles_and_rates(arrays, x, bases)
 
     def total(angle, rate):
         return jnp.sum(_surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin,
-                                             temperature))
+                                             temperature, needed))
 
     by_angle, by_rate = jax.grad(total, argnums=(0, 1))(angle, rate)  # per joint (..., n_samples)
     n_joints = len(angle)
@@ -93,13 +98,26 @@ def _angles_and_rates(arrays, x, bases):
                  for order, basis in enumerate(bases))
 
 
-def _surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin, temperature):
+def _surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin, temperature,
+                          needed=None):
+    """The surrogate from the joint angles and rates at the samples (``_angles_and_rates``).
+
+    With ``needed`` (``surrogate_gradient``) the links' end points come from a branch on it:
+    XLA's CPU backend otherwise copies their sines and cosines into each of the clearance
+    bounds' fusions, in the gradient too (``benchmarks/RESULTS.md``, *Decisions and negative
+    results*, "The piece test in two branches").
+    """
     speed = path.arc_length_rate(rate)  # (..., n_samples)
     weights = jnp.asarray(path.simpson_weights(spec.n_samples), speed.dtype)
     distance = _sum_over_samples(weights.reshape((1,) * (speed.ndim - 1) + weights.shape)
                                  * speed)  # paper eq. 5
     margin = margin + arrays.margin  # the barrier's margin on top of the problem's
-    bounds = collision_lib.posture_clearance_bound(arrays.lengths, arrays.world, angle)
+    if needed is None:
+        links = link_endpoints(arrays.lengths, angle)
+    else:
+        links = jax.lax.cond(needed, lambda a: link_endpoints(arrays.lengths, a),
+                             lambda a: [(jnp.zeros_like(a[0]),) * 4] * len(a), angle)
+    bounds = collision_lib.link_clearance_bounds(arrays.world, links)
     barrier = sum(temperature * jax.nn.softplus((margin - c) / temperature) for c in bounds)
     return distance + barrier_weight * _sum_over_samples(barrier) / spec.n_samples
 
@@ -124,8 +142,8 @@ def _refine_rows(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, te
     optimizer = DEFAULT_OPTIMIZER if optimizer is None else optimizer
     update = jax.vmap(optimizer.update)
 
-    def gradient(z):
-        return surrogate_gradient(spec, arrays, z, barrier_weight, margin, temperature)
+    def gradient(z, needed):
+        return surrogate_gradient(spec, arrays, z, barrier_weight, margin, temperature, needed)
 
     def body(carry, step):
         params, state, best_x, best_fitness, n_accepted, feasible, initial = carry
@@ -139,7 +157,7 @@ def _refine_rows(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, te
         best_x = jnp.where(accept[:, None], params, best_x)
         best_fitness = jnp.where(accept, candidate.fitness, best_fitness)
         # the last step's update is never evaluated: it keeps the loop's body in one piece
-        grads = gradient(params)
+        grads = gradient(params, feasible.any())  # no feasible row: no step is accepted
         grads = jnp.where(jnp.isfinite(grads), grads, 0.0)
         updates, state = update(grads, state, params)
         params = optax.apply_updates(params, updates)
