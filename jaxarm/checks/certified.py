@@ -313,6 +313,7 @@ def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin, busy):
     lengths, world, start, goal, x = motion
     dtype = x.dtype
     degree = tables.shape[1] - 1
+    n_joints = start.shape[0]
     scale = jnp.asarray(step / 2.0 ** (np.arange(MAX_LEVELS + 1) + 1), dtype)  # exact halvings
     radius = scale[pieces.level]
     # Widened by a few float32 ulps: the centre and radius are rounded once each.
@@ -326,7 +327,6 @@ def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin, busy):
         about_sample = [path.joint_angle_list(start, goal, x, rows[:, order], order,
                                               per_path=True)
                         for order in range(degree + 1)]
-        n_joints = len(about_sample[0])
         about_centre = []  # about_centre[m][j] = theta_j^(m)(centre) / m!
         for m in range(degree + 1):
             # float: an int binomial past int32 (degree 34 and up) fails to convert in JAX
@@ -357,7 +357,6 @@ def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin, busy):
     # and cosines again; a branch's results are computed once (``benchmarks/RESULTS.md``,
     # *Decisions and negative results*, "The piece test in two branches").
     zero = jnp.zeros(x.shape[:1], dtype)
-    n_joints = start.shape[0]
     still = collision_lib.LinkMotion.zeros(zero)
     speed, motions = jax.lax.cond(busy, geometry,
                                   lambda: ([zero] * n_joints, [still] * n_joints))
