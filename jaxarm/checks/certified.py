@@ -72,7 +72,7 @@ Three stages, all batched over paths.
 Pieces are located by integers (sample, level, offset) and expanded about their sample with
 float64 tables of the basis derivatives, so a piece far below float32's spacing of r still has
 an accurate centre. The guarantee holds up to floating-point rounding of the geometry (float32:
-about 1e-5 cm on an arm of 80 cm).
+a few 1e-5 cm on an arm of 80 cm).
 
 Violation (for constraint handling), zero exactly when the motion is certified free:
 - a witness at a sample: how far the nearest link is inside the margin at the deepest sample
