@@ -76,10 +76,12 @@ def run_restarts_of(keys, swarm: pso.Swarm, n_iters: int, measure_above=None) ->
       swarm: the optimiser (its functions see one restart).
       n_iters: updates (static).
       measure_above: optionally ``(x, bar) -> Measured``, called in place of ``swarm.measure``
-        with ``swarm.bar(state)`` (a ``pso.Bar``, when the swarm has one): it must measure as
-        ``swarm.measure`` does every path whose objective exceeds its particle's bar (where
-        ``bar.free_only``, at least whether the path is free, and some positive violation if
-        not), and may leave the others unproved (violation inf); the loop returns the same.
+        with ``swarm.bar(state)`` (a ``pso.Bar``, when the swarm has one), once for all the
+        restarts (x of shape (n_restarts, n, n_free), the bar's fields and the result's
+        (n_restarts, n)): it must measure as ``swarm.measure`` does every path whose objective
+        exceeds its particle's bar (where ``bar.free_only``, at least whether the path is
+        free, and some positive violation if not), and may leave the others unproved
+        (violation inf); the loop returns the same.
 
     Returns:
       ``RestartOutcome``: best_x (n_restarts, n_free), its fitness and violation as the swarm
@@ -91,8 +93,10 @@ def run_restarts_of(keys, swarm: pso.Swarm, n_iters: int, measure_above=None) ->
         measure_all = jax.vmap(swarm.measure)
         measure = lambda x, state: measure_all(x)  # noqa: E731
     else:
-        bar, measure_bar = jax.vmap(swarm.bar), jax.vmap(measure_above)
-        measure = lambda x, state: measure_bar(x, bar(state))  # noqa: E731
+        # Not a ``vmap`` of a one-restart measurement: its batching rule folds the restarts
+        # into one batch too, but JAX traces the check once more for the rule.
+        bar = jax.vmap(swarm.bar)
+        measure = lambda x, state: measure_above(x, bar(state))  # noqa: E731
     tell = jax.vmap(swarm.tell, in_axes=(0, 0, 0, None))
     keys_at = jax.vmap(jax.random.fold_in, in_axes=(0, None))
     state, x = start(keys_at(keys, 0))
@@ -165,9 +169,9 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
 
 def path_measurement(spec: ProblemSpec, arrays: ProblemArrays):
     """What a search measures of its paths: ``(x, bar=None) -> constraints.Measured`` for x of
-    shape (n, n_free), mapped over restarts by ``jax.vmap`` as one batch; ``bar`` (a
-    ``pso.Bar``) lets the certified check skip what cannot change the swarm
-    (``checks.evaluate.evaluate``)."""
+    shape (..., n, n_free) (one restart's paths, or every restart's at once: one batch, also
+    under ``jax.vmap``); ``bar`` (a ``pso.Bar``) lets the certified check skip what cannot
+    change the swarm (``checks.evaluate.evaluate``)."""
     evaluate = vmapped_evaluate(spec)
 
     def measure(x, bar=None):
