@@ -226,15 +226,18 @@ def build_parser() -> argparse.ArgumentParser:
     reproduce.add_argument("--out", type=pathlib.Path, default=pathlib.Path("results"),
                            help="output folder (results)")
     reproduce.add_argument("--quick", action="store_true",
-                           help="smaller studies (a few minutes on 2 cores)")
+                           help="the demo: the paper's tables and the constraint rules at 100 "
+                                "seeds; the suite and the degrees only when named")
     reproduce.add_argument("--restarts", type=_positive,
-                           help="restarts of the case-1 study (500; 100 with --quick)")
+                           help="restarts of the case-1 study and the rules section (500; 100 "
+                                "with --quick)")
     reproduce.add_argument("--suite", help="comma-separated scenarios for the suite study "
-                                           "(default: all shipped)")
+                                           "(default: all shipped; none with --quick)")
     reproduce.add_argument("--suite-restarts", type=_positive,
                            help="restarts per suite scenario (200; 50 with --quick)")
-    reproduce.add_argument("--degrees", type=_degrees, default=(6, 7, 8),
-                           help="path degrees compared beyond the paper (6,7,8)")
+    reproduce.add_argument("--degrees", type=_degrees,
+                           help="path degrees compared beyond the paper (6,7,8; none with "
+                                "--quick)")
     reproduce.add_argument("--workers", type=_positive,
                            help="threads running the report's sections side by side (default: "
                                 "the cores available, at most 5; 1 under jax.distributed); "

@@ -169,6 +169,36 @@ def test_the_suite_table_searches_under_the_certified_check_and_names_it(tmp_pat
     assert all("certified check" in label for label in legend)
 
 
+@pytest.mark.parametrize("quick, suite, degrees, expected", [
+    (True, None, None, ["case 1", "cases II", "constraint rules"]),
+    (True, ["open-space"], None, ["case 1", "cases II", "constraint rules", "shipped suite: 1 "]),
+    (True, None, (6,), ["case 1", "cases II", "beyond the paper: degree 6 ", "constraint rules"]),
+    (False, None, None, ["case 1", "cases II", "beyond the paper: degree 6, 7, 8 ",
+                         "constraint rules", "shipped suite: 13 "]),
+])
+def test_the_quick_report_leaves_out_the_suite_and_the_degrees_unless_named(
+        monkeypatch, tmp_path, quick, suite, degrees, expected):
+    """``--quick`` (``make demo``) runs the paper's sections and the rules; each left-out
+    section is named at the top of the report, with the flag that adds it."""
+    titles = []
+
+    def no_run(sections, out, *args):  # the plan only: no section runs
+        titles.extend(section.title for section in sections)
+        return []
+
+    monkeypatch.setattr(report, "_run_sections", no_run)
+    path = report.reproduce_paper(tmp_path, quick=quick, suite=suite, degrees=degrees,
+                                  log=lambda text: None)
+    assert len(titles) == len(expected)
+    assert all(title.startswith(start) for title, start in zip(titles, expected))
+    text = path.read_text()
+    left_out = [flag for flag, kept in (("`--suite`", suite or not quick),
+                                        ("`--degrees`", degrees or not quick)) if not kept]
+    assert ("**Not in this run:**" in text) == bool(left_out)
+    assert all(flag in text for flag in left_out)
+    assert ("100 seeds" in titles[0]) == quick and ("500 seeds" in titles[0]) == (not quick)
+
+
 def _section(title, text, long=False, wait=None):
     def fill(part):
         if wait is not None:

@@ -78,21 +78,26 @@ def _print(text: str) -> None:
 
 def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int | None = None,
                     suite: list[str] | None = None, suite_restarts: int | None = None,
-                    degrees=(6, 7, 8), log: Callable[[str], None] = _print,
+                    degrees=None, log: Callable[[str], None] = _print,
                     progress: bool | None = None, workers: int | None = None):
     """Run the paper's experiments and the suite study; write ``out_dir/report.md``.
 
     Args:
       out_dir: output folder (created).
-      quick: smaller studies for a demo: 100 seeds on case 1, 50 per suite scenario, 20
-        restarts per degree.
-      n_restarts: seeds of the case-1 study (default 500, or 100 when quick).
-      suite: scenario names for the suite study (default: every shipped scenario).
+      quick: the demo: the paper's tables and the constraint rules at 100 seeds; the suite
+        and the degree comparison only where ``suite`` or ``degrees`` names them (50 seeds
+        per suite scenario, 20 restarts per degree). Each of their scenes and degrees
+        compiles programs of its own, most of the full report's compiling.
+      n_restarts: seeds of the case-1 study and the rules section (default 500, or 100 when
+        quick).
+      suite: scenario names for the suite study (default: every shipped scenario; none when
+        quick).
       suite_restarts: seeds per suite scenario (default 200, or 50 when quick).
-      degrees: path degrees compared in the beyond-the-paper section.
+      degrees: path degrees compared in the beyond-the-paper section (default 6, 7 and 8;
+        none when quick).
       log: where progress lines go (default: stdout, above any progress bars).
       progress: progress bars (default: when stderr is a terminal).
-      workers: threads running the report's five sections side by side (default: the cores
+      workers: threads running the report's sections side by side (default: the cores
         this process may use, at most 5; 1 when JAX has several devices or processes, whose
         programs must start in the same order everywhere). Results do not depend on it; times
         do: one section compiles while another runs (``benchmarks/RESULTS.md``, *Decisions and
@@ -108,14 +113,19 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
                   else (100 if quick else 500))
     suite_restarts = (positive_int("suite_restarts", suite_restarts) if suite_restarts is not None
                    else (50 if quick else 200))
-    suite = _suite_problems(list(scenario_files.available()) if suite is None else suite)
+    if suite is None:
+        suite = [] if quick else _suite_problems(list(scenario_files.available()))
+    else:
+        suite = _suite_problems(suite)
+    if degrees is None:
+        degrees = () if quick else (6, 7, 8)
     degrees = [positive_int("degrees", d, minimum=MIN_DEGREE, maximum=MAX_DEGREE)
                for d in degrees]
     workers = _section_workers(workers)
     out = output_folder("out_dir", out_dir)
     out.mkdir(parents=True, exist_ok=True)
     report = _Report(out)
-    chunk = _shared_chunk(n_restarts, suite_restarts)
+    chunk = _shared_chunk(n_restarts, suite_restarts if suite else n_restarts)
     # The paper's tables use the paper's check: collision-free at the 101 samples of r.
     case1, case2, case3 = (scenario_files.load_scenario(name, collision="sampled")
                            for name in ("paper-case-1", "paper-case-2", "paper-case-3"))
@@ -142,6 +152,12 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         "do.", "",
         f"Times include compilation. {_workers_sentence(workers)}", "",
     )
+    left_out = ([] if suite else ["the shipped suite (`--suite`)"]) + (
+        [] if degrees else ["the path degrees compared (`--degrees`)"])
+    if left_out:
+        report.add(f"**Not in this run:** {' and '.join(left_out)}. Each of their scenes and "
+                   "degrees compiles programs of its own; `jaxarm reproduce-paper` without "
+                   "`--quick` runs them, and either flag adds its section here.", "")
 
     def case_1(part: _Report) -> None:
         methods = ["A", "B", "C", "A:feasibility", "B:feasibility", "C:feasibility"]
@@ -169,12 +185,14 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         _Section(f"beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine",
                  lambda part: part.add(*beyond_paper_section(
                      [p.replace(collision="certified") for p in (case1, case2, case3)],
-                     20 if quick else 100, degrees)), long=True),
+                     20 if quick else 100, degrees)), long=True) if degrees else None,
         _Section(f"constraint rules compared on case 1 and death-trap, {n_restarts} seeds each",
                  rules_and_case_2),
         _Section(f"shipped suite: {len(suite)} scenarios x {suite_restarts} seeds x 2 methods",
-                 lambda part: _suite(part, suite, suite_restarts, chunk, progress), long=True),
+                 lambda part: _suite(part, suite, suite_restarts, chunk, progress),
+                 long=True) if suite else None,
     ]
+    sections = [section for section in sections if section is not None]
     for part in _run_sections(sections, out, workers, log, began):
         report.add(*part.lines)
     report.add(f"Total time: {time.perf_counter() - began:.0f} s.")
@@ -583,9 +601,9 @@ def _suite_problems(names) -> list:
 
 def _shared_chunk(n_restarts: int, suite_restarts: int) -> int:
     """Seeds per compiled call in every study of the report: the greatest common divisor of the
-    two study sizes when it is at least 20 (50 quick, 100 in full), so that the rules section's
-    case-1 and death-trap studies reuse the suite's programs (results do not depend on it); else
-    ``escape_study``'s default."""
+    two study sizes when it is at least 20 (100 in full), so that the rules section's case-1
+    and death-trap studies reuse the suite's programs (results do not depend on it); else
+    ``escape_study``'s default. Without a suite, pass ``n_restarts`` twice."""
     common = math.gcd(n_restarts, suite_restarts)
     return common if common >= 20 else 500
 
