@@ -232,13 +232,23 @@ def test_hull_separation_with_the_nearest_circle_alone_is_a_lower_bound(rng):
         circle_distances=([jnp.ones(2)] * len(distances), nan)))))
 
 
-@pytest.mark.parametrize("bound_fn", [collision.sweep_shortfalls, collision.drift_shortfalls],
-                         ids=["sweep", "drift"])
+def swing_shortfalls(lengths, world, about_centre: list, radius) -> list:
+    """The certified piece test's first-order bound: each link's swing (``link_swings``) less
+    its exact clearance at the centre."""
+    speed = [collision.taylor_speed_bound([order[j] for order in about_centre], radius)
+             for j in range(len(about_centre[0]))]
+    clearance = collision.posture_clearance_bound(lengths, world, about_centre[0], exact=True)
+    return [swing - bound for swing, bound in
+            zip(collision.link_swings(lengths, speed, radius), clearance)]
+
+
+@pytest.mark.parametrize("bound_fn", [collision.sweep_shortfalls, collision.drift_shortfalls,
+                                      swing_shortfalls], ids=["sweep", "drift", "swing"])
 @pytest.mark.parametrize("degree", [6, 8])
 def test_piece_bounds_hold_on_a_dense_grid(rng, degree, bound_fn):
     """Over a piece ``|r - c| <= radius``, each link's distance to the nearest obstacle (shapely,
-    41 times) is at least minus its ``sweep_shortfalls`` and its ``drift_shortfalls`` (margin
-    0), and each bound proves many pieces of moderate radius."""
+    41 times) is at least minus its ``sweep_shortfalls``, its ``drift_shortfalls`` and its
+    first-order swing bound (margin 0), and each bound proves many pieces of moderate radius."""
     problems = random_world_problems(rng, 12, collision="certified")
     with_polygons = [p for p in problems if len(p.world.boxes) + len(p.world.polygons)]
     assert with_polygons and len(with_polygons) < len(problems)

@@ -339,28 +339,41 @@ def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin, busy):
         speed = [collision_lib.taylor_speed_bound([order[j] for order in about_centre],
                                                   reach_radius)
                  for j in range(n_joints)]
-        return speed, collision_lib.link_motions(lengths, about_centre, reach_radius)
+        return (collision_lib.link_swings(lengths, speed, reach_radius),
+                collision_lib.link_motions(lengths, about_centre, reach_radius))
 
-    def bounds(speed, motions):
-        links = [(*motion.near, *motion.far) for motion in motions]
-        first, nearest = collision_lib.link_shortfalls(lengths, world, links, speed,
-                                                        reach_radius, margin, exact=True)
-        second = collision_lib.motion_shortfalls(world, motions, reach_radius, margin)
-        largest = functools.partial(functools.reduce, jnp.maximum)
-        return _PieceTest(shortfall=largest([jnp.minimum(a, b) for a, b in zip(first, second)]),
-                          first_order=largest(first), second_order=largest(second),
-                          nearest=nearest, radius=radius)
+    def stacked(swing, motions):  # the links on a leading axis: (n_joints, n) each
+        return jnp.stack(swing), jax.tree.map(lambda *links: jnp.stack(links), *motions)
 
-    # Two branches, taken unless no piece is to be tested (``busy`` False: zeros). XLA's CPU
-    # backend fuses a cheap elementwise producer into each of its consumers, so in one
-    # computation each of the bounds' fusions computed the pieces' Taylor shift and sines
-    # and cosines again; a branch's results are computed once (``benchmarks/RESULTS.md``,
-    # *Decisions and negative results*, "The piece test in two branches").
+    def bounds(swing, motion):  # every link at once: (n_joints, n) each
+        clearance, = collision_lib.link_clearance_bounds(world, [(*motion.near, *motion.far)],
+                                                         exact=True)
+        first = swing - (clearance - margin)
+        second, = collision_lib.motion_shortfalls(world, [motion], reach_radius[None], margin)
+        return first, second, clearance
+
+    # Three branches, taken unless no piece is to be tested (``busy`` False: zeros): the
+    # pieces' geometry link by link, the links stacked on an array axis, and the bounds on
+    # that axis (written once: the piece test compiles in about half the time of one written
+    # per link). XLA's CPU backend fuses a cheap elementwise producer into each of its
+    # consumers, so in one computation each bound's fusion computed the Taylor shift and the
+    # sines and cosines again, and reading rows of an array inside the fusion that computes it
+    # was slow; a branch's results are computed once and kept whole (``benchmarks/RESULTS.md``,
+    # *Decisions and negative results*, "The piece test in two branches" and "Geometry
+    # stacked over the links").
     zero = jnp.zeros(x.shape[:1], dtype)
-    still = collision_lib.LinkMotion.zeros(zero)
-    speed, motions = jax.lax.cond(busy, geometry,
-                                  lambda: ([zero] * n_joints, [still] * n_joints))
-    return jax.lax.cond(busy, bounds, lambda *_: _PieceTest(*(zero,) * 5), speed, motions)
+    links = jnp.zeros((n_joints,) + x.shape[:1], dtype)
+    swing, motions = jax.lax.cond(
+        busy, geometry,
+        lambda: ([zero] * n_joints, [collision_lib.LinkMotion.zeros(zero)] * n_joints))
+    swing, motion = jax.lax.cond(busy, stacked,
+                                 lambda *_: (links, collision_lib.LinkMotion.zeros(links)),
+                                 swing, motions)
+    first, second, clearance = jax.lax.cond(busy, bounds, lambda *_: (links,) * 3, swing,
+                                            motion)
+    return _PieceTest(shortfall=jnp.minimum(first, second).max(axis=0),
+                      first_order=first.max(axis=0), second_order=second.max(axis=0),
+                      nearest=clearance.min(axis=0), radius=radius)
 
 
 class _Verdict(NamedTuple):

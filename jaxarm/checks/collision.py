@@ -15,7 +15,7 @@ rules compare it times the path's travelling distance (``constraints.path_measur
 
 The certified continuous check lives in ``jaxarm.checks.certified``; the bounds it tests
 pieces of a motion with are here: ``drift_shortfalls`` (how far a link's points can drift over
-a piece), ``link_shortfalls`` (first order) and ``sweep_shortfalls`` (second order, with
+a piece), ``link_swings`` (first order) and ``sweep_shortfalls`` (second order, with
 ``hull_separation``).
 """
 
@@ -162,22 +162,20 @@ def reach_matrix(lengths):
     return jnp.where(upper, reach, 0.0)
 
 
-def link_shortfalls(lengths, world, links: list, speed: list, radius, margin=0.0,
-                    exact: bool = False):
-    """How far the piece ``|r - c| <= radius`` around a posture is from certified by a
-    first-order bound, link by link (cm): ``([delta_k - (c_k - margin) for each link k],
-    min_k c_k)``.
+def link_swings(lengths, speed: list, radius) -> list:
+    """How far any point of each link can move over the piece ``|r - c| <= radius``, when
+    ``speed_j`` bounds ``|theta_j'|`` there (cm): ``[radius sum_{j<=k} speed_j R_{jk} for each
+    link k]`` (``reach_matrix``). A link whose clearance at c (``link_clearance_bounds``) less
+    the margin is at least its swing is clear over the piece: the first-order bound.
 
-    ``links`` are the links' end points at c (``link_endpoints``), ``c_k`` their
-    ``link_clearance_bounds`` (``exact``: how they are bounded), ``delta_k = radius
-    sum_{j<=k} speed_j R_{jk}`` (``reach_matrix``) how far any point of link k can move when
-    ``speed_j`` bounds ``|theta_j'|`` over the piece; ``<= 0`` proves link k clear.
+    Args:
+      lengths: link lengths, shape (n_joints,).
+      speed: per joint, each of shape (...,).
+      radius: scalar or shape (...,).
     """
-    reach = reach_matrix(jnp.asarray(lengths, dtype=links[0][0].dtype))
-    bounds = link_clearance_bounds(world, links, exact)
-    shortfalls = [radius * sum(speed[j] * reach[j, k] for j in range(k + 1)) - (bound - margin)
-                  for k, bound in enumerate(bounds)]
-    return shortfalls, functools.reduce(jnp.minimum, bounds)
+    reach = reach_matrix(jnp.asarray(lengths, dtype=speed[0].dtype))
+    return [radius * sum(speed[j] * reach[j, k] for j in range(k + 1))
+            for k in range(len(speed))]
 
 
 def taylor_speed_bound(coefficients: list, radius):
@@ -269,7 +267,7 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     """
     speed = [taylor_speed_bound([order[j] for order in about_centre], radius)
              for j in range(len(about_centre[0]))]
-    reach = reach_matrix(jnp.asarray(lengths, dtype=about_centre[0][0].dtype))
+    swings = link_swings(lengths, speed, radius)
     shortfalls = []
     for k, motion in enumerate(link_motions(lengths, about_centre, radius)):
         link = (*motion.near, *motion.far)
@@ -278,11 +276,10 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
         polygons = world_lib.polygon_slots(*link, world, exact=False)
         none = jnp.full_like(link[0], jnp.inf)  # a world without obstacles
         clearance = _smallest(circles + polygons, none)
-        swing = radius * sum(speed[j] * reach[j, k] for j in range(k + 1))
         spread = radius * motion.top_speed
         swept = _smallest(swept_circles + [gap - spread for gap in polygons], none)
         shortfalls.append(jnp.minimum(
-            swing - (clearance - margin),
+            swings[k] - (clearance - margin),
             0.5 * radius * radius * motion.acceleration - (swept - margin)))
     return shortfalls
 
@@ -303,7 +300,7 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     point beside an obstacle keeps its line's distance where its hull covers part of the
     obstacle. A path that grazes an obstacle, its distance ``c + a s^2`` near the closest
     approach, is proved with pieces of radius about ``sqrt(c / a)``: a few pieces where the
-    first-order bound (``link_shortfalls``) needs ``1 / sqrt(c)`` of them.
+    first-order bound (``link_swings``) needs ``1 / sqrt(c)`` of them.
 
     Args:
       lengths, world: the problem's arrays.
