@@ -302,7 +302,7 @@ def share_capacities(problems) -> list[Problem]:
 
     A search compiles once per capacities (with the arm, degree and check), and compiling is
     most of a short study's time. Padded slots are empty but still computed, so a small scene
-    runs slower than at its own capacities ("Shared capacities in the quick report" in
+    runs slower than at its own capacities ("Shared capacities in the report's suite" in
     ``benchmarks/RESULTS.md``, *Decisions and negative results*); its results are as valid,
     though not always bit for bit the same (another compiled program can round differently in
     the last bits).
