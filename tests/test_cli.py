@@ -210,6 +210,8 @@ def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
          "--samples: n_samples must be <= 100001, got 1000001"),
         (["reproduce-paper", "--suite", ","], "--suite must be comma-separated scenario names"),
         (["reproduce-paper", "--suite="], "--suite must be comma-separated scenario names, got ''"),
+        (["reproduce-paper", "--quick", "--suite-restarts", "10"],
+         "--suite-restarts 10 needs --suite: a quick report runs no suite"),
         (["solve", ""], "scenario must be a shipped name or a path to a .toml file, got ''"),
         (["reproduce-paper", "--out", "a-file/results"],
          "--out 'a-file/results': 'a-file' is a file, not a folder"),

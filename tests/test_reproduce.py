@@ -199,6 +199,17 @@ def test_the_quick_report_leaves_out_the_suite_and_the_degrees_unless_named(
     assert ("100 seeds" in titles[0]) == quick and ("500 seeds" in titles[0]) == (not quick)
 
 
+@pytest.mark.parametrize("arguments, message", [
+    (dict(quick=True, suite_restarts=10), "suite_restarts=10 needs a suite"),
+    (dict(degrees=[]), "degrees must be a non-empty list of path degrees, got []"),
+    (dict(quick=True, degrees=6), "degrees must be a non-empty list of path degrees, got 6"),
+])
+def test_report_sizes_that_would_be_ignored_are_errors(tmp_path, arguments, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        report.reproduce_paper(tmp_path / "out", log=lambda text: None, **arguments)
+    assert not (tmp_path / "out").exists()  # checked before anything is written
+
+
 def _section(title, text, long=False, wait=None):
     def fill(part):
         if wait is not None:

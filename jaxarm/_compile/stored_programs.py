@@ -3,7 +3,8 @@
 The persistent compilation cache (``jaxarm._compile.cache``) keeps XLA's output, but a new process still
 traces each program in Python and lowers it to StableHLO before JAX can look it up in that
 cache. For jaxarm's large programs (the search, the checks, refine) that takes up to seconds
-each (``benchmarks/RESULTS.md``, *Compiled programs in the quick report*).
+each (the search's and the checks': ``benchmarks/RESULTS.md``, *Compiled programs in the quick
+report*).
 When the cache is on, jaxarm keeps every top-level program it traces as a serialized
 ``jax.export.Exported`` in ``traces/`` under the cache directory, and a later process calls the
 stored program (``Exported.call``) instead of tracing the Python code again.

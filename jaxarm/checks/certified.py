@@ -354,11 +354,12 @@ def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin, busy):
 
     # Three branches, taken unless no piece is to be tested (``busy`` False: zeros): the
     # pieces' geometry link by link, the links stacked on an array axis, and the bounds on
-    # that axis (written once: the piece test compiles in about half the time of one written
-    # per link). XLA's CPU backend fuses a cheap elementwise producer into each of its
-    # consumers, so in one computation each bound's fusion computed the Taylor shift and the
-    # sines and cosines again, and reading rows of an array inside the fusion that computes it
-    # was slow; a branch's results are computed once and kept whole (``benchmarks/RESULTS.md``,
+    # that axis (written once: the piece test alone compiles in about half the time of one
+    # written per link; per step it is slower on some scenes, faster on others). XLA's CPU
+    # backend fuses a cheap elementwise producer into each of its consumers, so in one
+    # computation each bound's fusion computed the Taylor shift and the sines and cosines
+    # again, and reading rows of an array inside the fusion that computes it was slow; a
+    # branch's results are computed once and kept whole (``benchmarks/RESULTS.md``,
     # *Decisions and negative results*, "The piece test in two branches" and "Geometry
     # stacked over the links").
     zero = jnp.zeros(x.shape[:1], dtype)

@@ -1,4 +1,4 @@
-"""``reproduce_paper``: every experiment of the paper, and the shipped suite, in one report.
+"""``reproduce_paper``: every experiment of the paper, and the studies beyond it, in one report.
 
 Writes ``report.md`` with its tables and figures (PNG), plus the studies as JSON and CSV, to an
 output folder. Everything is seeded: the same command gives the same numbers.
@@ -80,7 +80,7 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
                     suite: list[str] | None = None, suite_restarts: int | None = None,
                     degrees=None, log: Callable[[str], None] = _print,
                     progress: bool | None = None, workers: int | None = None):
-    """Run the paper's experiments and the suite study; write ``out_dir/report.md``.
+    """Run the paper's experiments and the studies beyond it; write ``out_dir/report.md``.
 
     Args:
       out_dir: output folder (created).
@@ -92,9 +92,10 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         quick).
       suite: scenario names for the suite study (default: every shipped scenario; none when
         quick).
-      suite_restarts: seeds per suite scenario (default 200, or 50 when quick).
-      degrees: path degrees compared in the beyond-the-paper section (default 6, 7 and 8;
-        none when quick).
+      suite_restarts: seeds per suite scenario (default 200, or 50 when quick; given to a
+        quick report without a suite, an error rather than ignored).
+      degrees: a non-empty list of path degrees compared in the beyond-the-paper section
+        (default 6, 7 and 8; none when quick).
       log: where progress lines go (default: stdout, above any progress bars).
       progress: progress bars (default: when stderr is a terminal).
       workers: threads running the report's sections side by side (default: the cores
@@ -111,6 +112,9 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
     # Every name and size is checked before the first study: a typo fails in a second.
     n_restarts = (positive_int("n_restarts", n_restarts) if n_restarts is not None
                   else (100 if quick else 500))
+    if quick and suite is None and suite_restarts is not None:
+        raise ValueError(f"suite_restarts={suite_restarts} needs a suite: a quick report runs "
+                         "none unless suite (--suite) names its scenarios")
     suite_restarts = (positive_int("suite_restarts", suite_restarts) if suite_restarts is not None
                    else (50 if quick else 200))
     if suite is None:
@@ -119,13 +123,15 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         suite = _suite_problems(suite)
     if degrees is None:
         degrees = () if quick else (6, 7, 8)
+    elif isinstance(degrees, (str, int)) or not len(degrees):
+        raise ValueError(f"degrees must be a non-empty list of path degrees, got {degrees!r}")
     degrees = [positive_int("degrees", d, minimum=MIN_DEGREE, maximum=MAX_DEGREE)
                for d in degrees]
     workers = _section_workers(workers)
     out = output_folder("out_dir", out_dir)
     out.mkdir(parents=True, exist_ok=True)
     report = _Report(out)
-    chunk = _shared_chunk(n_restarts, suite_restarts if suite else n_restarts)
+    chunk = _shared_chunk(n_restarts, suite_restarts if suite else 500)
     # The paper's tables use the paper's check: collision-free at the 101 samples of r.
     case1, case2, case3 = (scenario_files.load_scenario(name, collision="sampled")
                            for name in ("paper-case-1", "paper-case-2", "paper-case-3"))
@@ -603,7 +609,7 @@ def _shared_chunk(n_restarts: int, suite_restarts: int) -> int:
     """Seeds per compiled call in every study of the report: the greatest common divisor of the
     two study sizes when it is at least 20 (100 in full), so that the rules section's case-1
     and death-trap studies reuse the suite's programs (results do not depend on it); else
-    ``escape_study``'s default. Without a suite, pass ``n_restarts`` twice."""
+    ``escape_study``'s default. Without a suite, pass that default (500) as the second size."""
     common = math.gcd(n_restarts, suite_restarts)
     return common if common >= 20 else 500
 
