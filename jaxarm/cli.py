@@ -469,12 +469,18 @@ def _study(args) -> None:
 
 def _reproduce(args) -> None:
     from jaxarm.io.files import output_folder
+    from jaxarm.io.scenario_files import ScenarioError, load_scenario
     from jaxarm.paper.report import reproduce_paper
 
     output_folder("--out", args.out)
     suite = None if args.suite is None else [name.strip() for name in args.suite.split(",")]
     if suite is not None and not all(suite):
         raise ValueError(f"--suite must be comma-separated scenario names, got {args.suite!r}")
+    for name in suite or ():
+        try:
+            load_scenario(name)
+        except ScenarioError as error:
+            raise ValueError(f"--suite: {error}") from None
     if args.quick and suite is None and args.suite_restarts is not None:
         raise ValueError(f"--suite-restarts {args.suite_restarts} needs --suite: a quick report "
                          "runs no suite unless --suite names its scenarios")

@@ -164,7 +164,7 @@ def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
          "--gif 'missing/anim.gif': folder 'missing' does not exist"),
         (["study", "paper-case-2", "--json", "missing/s.json"], "folder 'missing' does not exist"),
         (["study", "paper-case-2", "--csv", "missing/s.csv"], "folder 'missing' does not exist"),
-        (["reproduce-paper", "--suite", "open-space,nope"], "unknown scenario 'nope'"),
+        (["reproduce-paper", "--suite", "open-space,nope"], "--suite: unknown scenario 'nope'"),
         (["solve", "paper-case-2", "--duration", "-1"], "--duration must be > 0, got -1.0"),
         (["solve", "paper-case-2", "--duration", "inf"], "--duration must be finite, got inf"),
         (["solve", "paper-case-2", "--duration", "2", "--max-velocity", "1"],
