@@ -79,6 +79,8 @@ def _degrees(text: str) -> tuple[int, ...]:
         raise argparse.ArgumentTypeError(f"degrees must be >= {MIN_DEGREE}, got {text!r}")
     if max(degrees) > MAX_DEGREE:
         raise argparse.ArgumentTypeError(f"degrees must be <= {MAX_DEGREE}, got {text!r}")
+    if len(set(degrees)) < len(degrees):
+        raise argparse.ArgumentTypeError(f"degrees must not repeat a degree, got {text!r}")
     return degrees
 
 
@@ -476,6 +478,8 @@ def _reproduce(args) -> None:
     suite = None if args.suite is None else [name.strip() for name in args.suite.split(",")]
     if suite is not None and not all(suite):
         raise ValueError(f"--suite must be comma-separated scenario names, got {args.suite!r}")
+    if suite is not None and len(set(suite)) < len(suite):
+        raise ValueError(f"--suite must not repeat a scenario, got {args.suite!r}")
     for name in suite or ():
         try:
             load_scenario(name)

@@ -210,6 +210,8 @@ def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
          "--samples: n_samples must be <= 100001, got 1000001"),
         (["reproduce-paper", "--suite", ","], "--suite must be comma-separated scenario names"),
         (["reproduce-paper", "--suite="], "--suite must be comma-separated scenario names, got ''"),
+        (["reproduce-paper", "--suite", "open-space,open-space"],
+         "--suite must not repeat a scenario, got 'open-space,open-space'"),
         (["reproduce-paper", "--quick", "--suite-restarts", "10"],
          "--suite-restarts 10 needs --suite: a quick report runs no suite"),
         (["solve", ""], "scenario must be a shipped name or a path to a .toml file, got ''"),
@@ -305,6 +307,8 @@ def test_the_cli_offers_the_librarys_choices_without_importing_jax():
         (["solve", "paper-case-2", "--degree", "6.5"], "argument --degree: invalid int value"),
         (["reproduce-paper", "--degrees", f"6,{MAX_DEGREE + 1}"],
          f"argument --degrees: degrees must be <= {MAX_DEGREE}, got '6,{MAX_DEGREE + 1}'"),
+        (["reproduce-paper", "--degrees", "6,8,6"],
+         "argument --degrees: degrees must not repeat a degree, got '6,8,6'"),
         (["nope"], "argument COMMAND: invalid choice: 'nope'"),
     ],
 )

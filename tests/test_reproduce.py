@@ -203,6 +203,9 @@ def test_the_quick_report_leaves_out_the_suite_and_the_degrees_unless_named(
     (dict(quick=True, suite_restarts=10), "suite_restarts=10 needs a suite"),
     (dict(degrees=[]), "degrees must be a non-empty list of path degrees, got []"),
     (dict(quick=True, degrees=6), "degrees must be a non-empty list of path degrees, got 6"),
+    (dict(quick=True, degrees=(6, 8, 6)), "degrees must not repeat a degree, got [6, 8, 6]"),
+    (dict(quick=True, suite=["open-space", "open-space"]),
+     "suite must not repeat a scenario, got ['open-space', 'open-space']"),
 ])
 def test_report_sizes_that_would_be_ignored_are_errors(tmp_path, arguments, message):
     with pytest.raises(ValueError, match=re.escape(message)):

@@ -90,11 +90,11 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         compiles programs of its own, most of the full report's compiling.
       n_restarts: seeds of the case-1 study and the rules section (default 500, or 100 when
         quick).
-      suite: scenario names for the suite study (default: every shipped scenario; none when
-        quick).
+      suite: distinct scenario names for the suite study (default: every shipped scenario;
+        none when quick).
       suite_restarts: seeds per suite scenario (default 200, or 50 when quick; given to a
         quick report without a suite, an error rather than ignored).
-      degrees: a non-empty list of path degrees compared in the beyond-the-paper section
+      degrees: a non-empty list of distinct path degrees compared in the beyond-the-paper section
         (default 6, 7 and 8; none when quick).
       log: where progress lines go (default: stdout, above any progress bars).
       progress: progress bars (default: when stderr is a terminal).
@@ -127,6 +127,8 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         raise ValueError(f"degrees must be a non-empty list of path degrees, got {degrees!r}")
     degrees = [positive_int("degrees", d, minimum=MIN_DEGREE, maximum=MAX_DEGREE)
                for d in degrees]
+    if len(set(degrees)) < len(degrees):
+        raise ValueError(f"degrees must not repeat a degree, got {degrees}")
     workers = _section_workers(workers)
     out = output_folder("out_dir", out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -602,6 +604,8 @@ def _suite_problems(names) -> list:
     computes every padded slot in its costlier tests."""
     if isinstance(names, str) or not names:
         raise ValueError(f"suite must be a non-empty list of scenario names, got {names!r}")
+    if len(set(names)) < len(names):
+        raise ValueError(f"suite must not repeat a scenario, got {list(names)!r}")
     return [scenario_files.load_scenario(name, collision="certified") for name in names]
 
 
