@@ -252,9 +252,13 @@ class Study(NamedTuple):
         return out.getvalue()
 
 
+CHUNK_SIZE = 500  # seeds per compiled call of ``escape_study`` unless told
+
+
 def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_restarts: int = 500,
                  n_iters: int = N_ITERS, n_particles: int = N_PARTICLES, constraint: str = "death",
-                 seed: int = 0, chunk_size: int = 500, progress: bool | None = None) -> Study:
+                 seed: int = 0, chunk_size: int = CHUNK_SIZE,
+                 progress: bool | None = None) -> Study:
     """How often each method escapes zero fitness, over ``n_restarts`` independent seeds.
 
     Args:

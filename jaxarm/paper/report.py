@@ -86,8 +86,8 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
       out_dir: output folder (created).
       quick: the demo: the paper's tables and the constraint rules at 100 seeds; the suite
         and the degree comparison only where ``suite`` or ``degrees`` names them (50 seeds
-        per suite scenario, 20 restarts per degree). Each of their scenes and degrees
-        compiles programs of its own, most of the full report's compiling.
+        per suite scenario, 20 restarts per degree): each of their scenes and degrees
+        compiles programs of its own.
       n_restarts: seeds of the case-1 study and the rules section (default 500, or 100 when
         quick).
       suite: distinct scenario names for the suite study (default: every shipped scenario;
@@ -133,7 +133,7 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
     out = output_folder("out_dir", out_dir)
     out.mkdir(parents=True, exist_ok=True)
     report = _Report(out)
-    chunk = _shared_chunk(n_restarts, suite_restarts if suite else 500)
+    chunk = _shared_chunk(n_restarts, suite_restarts if suite else None)
     # The paper's tables use the paper's check: collision-free at the 101 samples of r.
     case1, case2, case3 = (scenario_files.load_scenario(name, collision="sampled")
                            for name in ("paper-case-1", "paper-case-2", "paper-case-3"))
@@ -609,13 +609,13 @@ def _suite_problems(names) -> list:
     return [scenario_files.load_scenario(name, collision="certified") for name in names]
 
 
-def _shared_chunk(n_restarts: int, suite_restarts: int) -> int:
+def _shared_chunk(n_restarts: int, suite_restarts: int | None) -> int:
     """Seeds per compiled call in every study of the report: the greatest common divisor of the
     two study sizes when it is at least 20 (100 in full), so that the rules section's case-1
     and death-trap studies reuse the suite's programs (results do not depend on it); else
-    ``escape_study``'s default. Without a suite, pass that default (500) as the second size."""
-    common = math.gcd(n_restarts, suite_restarts)
-    return common if common >= 20 else 500
+    ``escape_study``'s default. Without a suite (None), its default takes the suite's place."""
+    common = math.gcd(n_restarts, study.CHUNK_SIZE if suite_restarts is None else suite_restarts)
+    return common if common >= 20 else study.CHUNK_SIZE
 
 
 _CERTIFIED_ESCAPE = "An escape is a path the certified check proves collision-free for every r. "
