@@ -38,12 +38,14 @@ def test_sampled_check_agrees_with_shapely_on_the_same_samples(rng):
 @pytest.mark.parametrize("name", ["mixed-clutter", "polygon-field"])
 def test_sampled_check_with_a_margin_agrees_with_shapely_distances(rng, name):
     """Exact distances (a margin): the violation is the deepest sample's sum, over links and
-    obstacles, of how far each link is inside the margin. polygon-field has more link-edge
-    pairs than ``collision.UNROLLED_LINK_EDGES`` (its links are taken one at a time),
-    mixed-clutter fewer."""
+    obstacles, of how far each link is inside the margin. polygon-field, padded to 4 polygon
+    slots of 8 vertices, has more link-edge pairs than ``collision.UNROLLED_LINK_EDGES`` (its
+    links are taken one at a time), mixed-clutter fewer."""
     margin = 2.0
     problem = jaxarm.load_scenario(name, collision="sampled").replace(margin=margin,
                                                                        n_samples=21)
+    if name == "polygon-field":
+        problem = problem.replace(capacities=(0, 4, 8))
     pairs = collision.link_edge_pairs(len(problem.arm.lengths), problem.arrays.world)
     assert (pairs > collision.UNROLLED_LINK_EDGES) == (name == "polygon-field")
     x = rng.uniform(problem.init_low, problem.init_high, (300, problem.n_free))
@@ -194,10 +196,13 @@ def test_circle_sweep_gaps_of_a_point_a_centre_on_the_segment_and_nan():
     assert np.isnan(at_rest["nan"]) and np.isnan(swept["nan"])
 
 
-def test_hull_separation_with_the_nearest_circle_alone_is_a_lower_bound(rng):
-    """Given the circles' distances from a set every point of the hull is within ``spread``
-    of, only the nearest circle gets separating axes: still never above shapely's distance
-    of the hull, and equal to it where the nearest circle is the only one within reach."""
+@pytest.mark.parametrize("kind", ["circle", "polygon"])
+def test_hull_separation_with_the_nearest_obstacle_alone_is_a_lower_bound(rng, kind):
+    """Given the circles' (or the polygons') distances from a set every point of the hull is
+    within ``spread`` of, only the nearest circle (polygon) gets separating axes: still never
+    above shapely's distance of the hull, and where the nearest is the only one of its kind
+    within reach, equal to the full test (polygons: at least as tight; elsewhere a polygon's
+    distance less the spread can beat its separating-axis gap near a corner)."""
     equal = 0
     for problem in random_world_problems(rng, 40, collision="certified"):
         world = problem.arrays.world
@@ -206,30 +211,41 @@ def test_hull_separation_with_the_nearest_circle_alone_is_a_lower_bound(rng):
         velocity = rng.normal(0, 1.5, (200, 2, 2))
         corners = np.stack([ends[:, 0] - velocity[:, 0], ends[:, 0] + velocity[:, 0],
                             ends[:, 1] + velocity[:, 1], ends[:, 1] - velocity[:, 1]], axis=1)
-        spread = np.linalg.norm(velocity, axis=-1).max(axis=1)
-        distances = world_lib.circle_slots(*(jnp.asarray(ends[:, e, c]) for e in range(2)
+        spread = jnp.asarray(np.linalg.norm(velocity, axis=-1).max(axis=1))
+        parts = world_lib.separation_parts(*(jnp.asarray(ends[:, e, c]) for e in range(2)
                                              for c in range(2)), world)
-        ours = np.asarray(collision.hull_separation(
-            world, _corner_list(corners), circle_distances=(distances, jnp.asarray(spread))))
+        if kind == "circle":
+            distances, valid = parts.circles, world.circle_valid
+            ours = collision.hull_separation(world, _corner_list(corners),
+                                             circle_distances=(distances, spread))
+        else:
+            distances, valid = list(parts.polygons), world.polygon_valid
+            ours = collision.hull_separation(world, _corner_list(corners),
+                                             polygon_distances=(parts.polygons, spread))
+        ours = np.asarray(ours)
         full = np.asarray(collision.hull_separation(world, _corner_list(corners)))
         oracle, _ = _shapely_hull_gaps(problem.world, corners)
         assert np.all(ours <= np.maximum(oracle, 0.0) + 1e-3)
         apart = np.isfinite(oracle) & (oracle > 0)
-        assert np.all(ours[apart] <= full[apart] + 1e-4)  # the full test is never looser
-        if np.sum(np.asarray(world.circle_valid)) >= 2:
+        if kind == "circle":
+            assert np.all(ours[apart] <= full[apart] + 1e-4)  # the full test is never looser
+        if np.sum(np.asarray(valid)) >= 2:
             second = np.sort(np.stack([np.asarray(d) for d in distances]), axis=0)[1]
-            alone = apart & (second - spread > full)
-            np.testing.assert_allclose(ours[alone], full[alone], atol=1e-4)
+            alone = apart & (second - np.asarray(spread) > full)
+            if kind == "circle":
+                np.testing.assert_allclose(ours[alone], full[alone], atol=1e-4)
+            else:
+                assert np.all(ours[alone] >= full[alone] - 1e-4)
             equal += alone.sum()
     assert equal > 1000, equal
     # NaN never makes a gap: a NaN distance or spread gives NaN, which proves nothing
     nan = jnp.full(2, jnp.nan)
     one = [jnp.zeros(2)] * (len(distances) - 1)
-    assert np.all(np.isnan(np.asarray(collision.hull_separation(
-        world, [(jnp.zeros(2), jnp.zeros(2))] * 4, circle_distances=([nan] + one, jnp.ones(2))))))
-    assert np.all(np.isnan(np.asarray(collision.hull_separation(
-        world, [(jnp.zeros(2), jnp.zeros(2))] * 4,
-        circle_distances=([jnp.ones(2)] * len(distances), nan)))))
+    key = "circle_distances" if kind == "circle" else "polygon_distances"
+    for given in (([nan] + one, jnp.ones(2)), ([jnp.ones(2)] * len(distances), nan)):
+        given = given if kind == "circle" else (jnp.stack(given[0]), given[1])
+        assert np.all(np.isnan(np.asarray(collision.hull_separation(
+            world, [(jnp.zeros(2), jnp.zeros(2))] * 4, **{key: given}))))
 
 
 def swing_shortfalls(lengths, world, about_centre: list, radius) -> list:

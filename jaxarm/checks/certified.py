@@ -37,13 +37,14 @@ Three stages, all batched over paths.
      velocities), less ``radius^2 / 2`` times a bound on the acceleration of the link's
      points. The bound is the better of two: the separating-axis gap of the convex hull of
      the end points' motion (the hull's exact distance from the circle nearest the link at
-     the centre, when apart; the other circles count their distance less the hull's
-     spread), and how far the link's turning line stays from the circle, or from every
-     vertex of a polygon, over the piece. The hull fits a link sliding past an obstacle; the
-     line a link turning about a point beside one, where the hull covers part of the
-     obstacle. A link sweeping past an obstacle at a small clearance c is proved with
-     pieces of radius about ``sqrt(c)`` instead of c, so a path the swarm drives against an
-     obstacle costs a few pieces instead of a number growing as ``1 / sqrt(c)``.
+     the centre, when apart, and the nearest polygon's edge normals; every other obstacle
+     counts its distance less the hull's spread), and how far the link's turning line
+     stays from that circle, or from every vertex of that polygon, over the piece. The
+     hull fits a link sliding past an obstacle; the line a link turning about a point
+     beside one, where the hull covers part of the obstacle. A link sweeping past an
+     obstacle at a small clearance c is proved with pieces of radius about ``sqrt(c)``
+     instead of c, so a path the swarm drives against an obstacle costs a few pieces
+     instead of a number growing as ``1 / sqrt(c)``.
 
    A piece ends as
 
@@ -346,10 +347,11 @@ def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin, busy):
         return jnp.stack(swing), jax.tree.map(lambda *links: jnp.stack(links), *motions)
 
     def bounds(swing, motion):  # every link at once: (n_joints, n) each
-        clearance, = collision_lib.link_clearance_bounds(world, [(*motion.near, *motion.far)],
-                                                         exact=True)
+        parts = world_lib.separation_parts(*motion.near, *motion.far, world)
+        clearance = collision_lib.smallest_separation(parts, swing)
         first = swing - (clearance - margin)
-        second, = collision_lib.motion_shortfalls(world, [motion], reach_radius[None], margin)
+        second, = collision_lib.motion_shortfalls(world, [motion], reach_radius[None], margin,
+                                                  [parts])
         return first, second, clearance
 
     # Three branches, taken unless no piece is to be tested (``busy`` False: zeros): the

@@ -106,19 +106,20 @@ def posture_clearance_bound(lengths, world, theta: list, exact: bool = False) ->
 def link_clearance_bounds(world, links: list, exact: bool = False) -> list:
     """``posture_clearance_bound`` of links given by their end points (``link_endpoints``'s
     tuples, each coordinate of shape (...,))."""
-    bounds = []
-    for link in links:
-        nearest = jnp.full_like(link[0], jnp.inf)
-        if exact:
-            parts = world_lib.separation_parts(*link, world)
-            separations = parts.circles
-            if parts.polygons is not None:
-                nearest = parts.polygons.min(axis=0)
-        else:
-            separations = (world_lib.circle_slots(*link, world)
-                           + world_lib.polygon_slots(*link, world, exact=False))
-        bounds.append(_smallest(separations, nearest))
-    return bounds
+    if exact:
+        return [smallest_separation(world_lib.separation_parts(*link, world), link[0])
+                for link in links]
+    return [_smallest(world_lib.circle_slots(*link, world)
+                      + world_lib.polygon_slots(*link, world, exact=False),
+                      jnp.full_like(link[0], jnp.inf)) for link in links]
+
+
+def smallest_separation(parts: world_lib.SeparationParts, like):
+    """The smallest of links' separations from every obstacle, of ``like``'s shape and type
+    (+inf without obstacles)."""
+    nearest = (jnp.full_like(like, jnp.inf) if parts.polygons is None
+               else parts.polygons.min(axis=0))
+    return _smallest(parts.circles, nearest)
 
 
 def _smallest(values: list, initial):
@@ -315,20 +316,27 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     return motion_shortfalls(world, link_motions(lengths, about_centre, radius), radius, margin)
 
 
-def motion_shortfalls(world, motions: list, radius, margin=0.0) -> list:
-    """``sweep_shortfalls`` of links given by their ``LinkMotion``s over the piece."""
+def motion_shortfalls(world, motions: list, radius, margin=0.0, separations=None) -> list:
+    """``sweep_shortfalls`` of links given by their ``LinkMotion``s over the piece.
+
+    ``separations``: optionally each link's ``world.separation_parts`` at the centre (the
+    first-order bound's), else computed here: the nearest circle and the nearest polygon get
+    separating axes, every other obstacle its distance less the hull's spread
+    (``hull_separation``).
+    """
     shortfalls = []
-    for motion in motions:
+    for index, motion in enumerate(motions):
         (x, y), (next_x, next_y) = motion.near, motion.far
         (vx, vy), (next_vx, next_vy) = motion.near_velocity, motion.far_velocity
+        parts = (world_lib.separation_parts(x, y, next_x, next_y, world) if separations is None
+                 else separations[index])
         # the hull lies within this distance of the link at the centre (``top_speed``)
         spread = radius * motion.top_speed
         patch = _Patch((x, y), (next_x, next_y), (radius * vx, radius * vy),
                        (radius * next_vx, radius * next_vy))
         hull = hull_separation(
-            world, patch.corners(),
-            circle_distances=(world_lib.circle_slots(x, y, next_x, next_y, world), spread),
-            patch=patch)
+            world, patch.corners(), circle_distances=(parts.circles, spread), patch=patch,
+            polygon_distances=None if parts.polygons is None else (parts.polygons, spread))
         shortfalls.append(0.5 * radius * radius * motion.acceleration - (hull - margin))
     return shortfalls
 
@@ -337,7 +345,8 @@ _CORNER_PAIRS = tuple(itertools.combinations(range(4), 2))  # every hull edge is
 
 
 @rank_promotion_allowed
-def hull_separation(world, corners: list, circle_distances=None, patch=None):
+def hull_separation(world, corners: list, circle_distances=None, patch=None,
+                    polygon_distances=None):
     """A lower bound on the signed distance from the convex hull of four points to the nearest
     obstacle (cm; negative where they may overlap: at most minus the penetration depth);
     +inf without obstacles.
@@ -362,6 +371,9 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None):
       patch: optional ``_Patch`` whose sweep the hull holds: then the bound is on the
         patch's distance, each tested circle's and polygon's gap the better of the hull's and
         the patch's turning line's (``_line_gap``).
+      polygon_distances: optional ``(distances, spread)`` as ``circle_distances``, for the
+        polygon slots (``world.separation_parts(...).polygons``, shape (n_polygon_slots,
+        ...)): only the nearest polygon gets separating axes and the turning line.
 
     Returns:
       Array of shape (...,).
@@ -381,14 +393,7 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None):
         return jnp.maximum(gap, _line_gap(*patch.line_sides(px, py), patch.longest) - radius)
     if circle_distances is not None and circles.shape[0] > 1:
         distances, spread = circle_distances
-        # the nearest circle, picked slot by slot (a stacked argmin compiled to a scalar loop)
-        picked = [circles[0, 0], circles[0, 1], circles[0, 2]]
-        closest, others = distances[0], jnp.full_like(distances[0], jnp.inf)
-        for i in range(1, circles.shape[0]):
-            nearer = distances[i] < closest
-            picked = [jnp.where(nearer, circles[i, c], p) for c, p in enumerate(picked)]
-            others = jnp.minimum(others, jnp.maximum(closest, distances[i]))
-            closest = jnp.minimum(closest, distances[i])
+        picked, closest, others = _nearest_slot(distances, [circles[:, c] for c in range(3)])
         nearest = jnp.minimum(  # empty slots have distance inf: none nearest if all are
             jnp.where(closest < jnp.inf, circle_gap(*picked), jnp.inf),
             others - spread)
@@ -396,34 +401,63 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None):
         for i in range(circles.shape[0]):
             gap = circle_gap(circles[i, 0], circles[i, 1], circles[i, 2])
             nearest = jnp.minimum(nearest, jnp.where(world.circle_valid[i], gap, jnp.inf))
-    if world.vertices.shape[0]:
-        slots = functools.partial(world_lib.leading_slots, ndim=corners[0][0].ndim)
-        vertices = jnp.asarray(world.vertices, dtype)
-        normals = jnp.asarray(world.normals, dtype)
-        low_extent, high_extent = (jnp.asarray(a, dtype)
-                                   for a in (world.extent_low, world.extent_high))
-        valid = [slots(world.edge_valid[:, v]) for v in range(vertices.shape[1])]
-        gap = jnp.full((vertices.shape[0],) + corners[0][0].shape, -jnp.inf, dtype)
-        for v in range(vertices.shape[1]):  # the polygons' edge normals
-            low, high = _projection_range(slots(normals[:, v, 0]), slots(normals[:, v, 1]),
-                                          corners)
-            edge_gap = jnp.maximum(low - slots(high_extent[:, v]),
-                                   slots(low_extent[:, v]) - high)
-            gap = jnp.maximum(gap, jnp.where(valid[v], edge_gap, -jnp.inf))
-        for nx, ny, low, high in axes:  # the hull's
-            along = [nx * slots(vertices[:, v, 0]) + ny * slots(vertices[:, v, 1])
-                     for v in range(vertices.shape[1])]
-            lowest, highest = _valid_range(along, along, valid)
-            gap = jnp.maximum(gap, jnp.maximum(lowest - high, low - highest))
-        if patch is not None:  # every vertex on one side of the link's turning line
-            sides = [patch.line_sides(slots(vertices[:, v, 0]), slots(vertices[:, v, 1]))
-                     for v in range(vertices.shape[1])]
-            below, above = _valid_range([side[0] for side in sides],
-                                        [side[1] for side in sides], valid)
-            gap = jnp.maximum(gap, _line_gap(below, above, patch.longest))
-        nearest = jnp.minimum(nearest, jnp.where(slots(world.polygon_valid), gap,
-                                                 jnp.inf).min(axis=0))
+    n_polygons, n_vertices = world.vertices.shape[:2]
+    if n_polygons:
+        per_vertex = [jnp.asarray(a, dtype)[:, v] for a in (
+            world.vertices[..., 0], world.vertices[..., 1], world.normals[..., 0],
+            world.normals[..., 1], world.extent_low, world.extent_high)
+            for v in range(n_vertices)] + [world.edge_valid[:, v] for v in range(n_vertices)]
+        if polygon_distances is not None and n_polygons > 1:
+            distances, spread = polygon_distances
+            picked, closest, others = _nearest_slot(list(distances), per_vertex)
+            gap = _polygon_gap(picked, n_vertices, axes, corners, patch)
+            nearest = jnp.minimum(nearest, jnp.minimum(
+                jnp.where(closest < jnp.inf, gap, jnp.inf), others - spread))
+        else:
+            slots = functools.partial(world_lib.leading_slots, ndim=corners[0][0].ndim)
+            gap = _polygon_gap([slots(a) for a in per_vertex], n_vertices, axes, corners, patch)
+            nearest = jnp.minimum(nearest, jnp.where(slots(world.polygon_valid), gap,
+                                                     jnp.inf).min(axis=0))
     return nearest
+
+
+def _nearest_slot(distances: list, fields: list) -> tuple:
+    """The obstacle slot nearest by ``distances`` (one array per slot), picked slot by slot (a
+    stacked argmin compiled to a scalar loop): ``(picked, closest, others)``, ``picked[f]``
+    field f (``fields[f]``, shape (n_slots,)) of that slot, ``closest`` its distance and
+    ``others`` the least of the other slots' (each of the distances' shape)."""
+    picked = [field[0] for field in fields]
+    closest, others = distances[0], jnp.full_like(distances[0], jnp.inf)
+    for i in range(1, len(distances)):
+        nearer = distances[i] < closest
+        picked = [jnp.where(nearer, field[i], p) for field, p in zip(fields, picked)]
+        others = jnp.minimum(others, jnp.maximum(closest, distances[i]))
+        closest = jnp.minimum(closest, distances[i])
+    return picked, closest, others
+
+
+def _polygon_gap(per_vertex: list, n_vertices: int, axes: list, corners: list, patch):
+    """The separating-axis gap between the hull of ``corners`` (on its ``axes``) and polygons
+    given vertex by vertex (``per_vertex``: x, y, normal x, normal y, low extent, high extent,
+    edge valid, each a list of ``n_vertices`` arrays that broadcast against the corners),
+    with the better of it and ``patch``'s turning line when given."""
+    xs, ys, normal_xs, normal_ys, lows, highs, valid = (
+        per_vertex[i * n_vertices:(i + 1) * n_vertices] for i in range(7))
+    gap = None
+    for v in range(n_vertices):  # the polygons' edge normals
+        low, high = _projection_range(normal_xs[v], normal_ys[v], corners)
+        edge_gap = jnp.where(valid[v], jnp.maximum(low - highs[v], lows[v] - high), -jnp.inf)
+        gap = edge_gap if gap is None else jnp.maximum(gap, edge_gap)
+    for nx, ny, low, high in axes:  # the hull's
+        along = [nx * x + ny * y for x, y in zip(xs, ys)]
+        lowest, highest = _valid_range(along, along, valid)
+        gap = jnp.maximum(gap, jnp.maximum(lowest - high, low - highest))
+    if patch is not None:  # every vertex on one side of the link's turning line
+        sides = [patch.line_sides(x, y) for x, y in zip(xs, ys)]
+        below, above = _valid_range([side[0] for side in sides], [side[1] for side in sides],
+                                    valid)
+        gap = jnp.maximum(gap, _line_gap(below, above, patch.longest))
+    return gap
 
 
 def _valid_range(lows: list, highs: list, valid: list) -> tuple:

@@ -48,7 +48,8 @@ _POLYGON_FIELDS = ("vertices", "normals", "extent_low", "extent_high", "edge_val
 
 def slot_capacity(count: int) -> int:
     """0 for none (the kernel for that shape is skipped), else the smallest power of two >=
-    count: layouts of similar size share one program."""
+    count: layouts of similar size share one program (``jaxarm.paper.blocking``'s added
+    obstacles)."""
     return 0 if count == 0 else 1 << (count - 1).bit_length()
 
 
@@ -97,14 +98,13 @@ class World:
         return out
 
     def capacities(self) -> tuple[int, int, int]:
-        """Default (circle, polygon, vertex) slot counts: powers of two, vertices at least 4."""
+        """Default (circle, polygon, vertex) slot counts: the world's own (vertices: its largest
+        polygon's, 4 without polygons). Padded slots are computed like full ones, so the default
+        pads none (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Exact
+        capacities by default"); ``jaxarm.share_capacities`` pads scenes to share a program."""
         polygons = self.polygon_vertices()
-        most_vertices = max((len(p) for p in polygons), default=4)
-        return (
-            slot_capacity(len(self.circles)),
-            slot_capacity(len(polygons)),
-            max(4, slot_capacity(most_vertices)),
-        )
+        return (len(self.circles), len(polygons),
+                max((len(p) for p in polygons), default=4))
 
     def slot_names(self, capacities: tuple[int, int, int]) -> list[str | None]:
         """Obstacle name of every slot of a packing (circle slots, then polygon slots)."""
