@@ -1,6 +1,7 @@
 """The certified continuous check (``jaxarm.checks.certified``, ``jaxarm.certify``) against an independent
 dense oracle (shapely, float64)."""
 
+import jax
 import numpy as np
 import pytest
 from random_worlds import thin_wall_problem
@@ -164,6 +165,16 @@ def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch, 
     for name, value in one_chunk_narrow.items():
         np.testing.assert_array_equal(value, np.asarray(getattr(chunked_other, name)),
                                       err_msg=name)
+
+
+@pytest.mark.parametrize("size", [1, 7, 4000])
+def test_chosen_rows_come_first_in_order_as_a_stable_sort_puts_them(rng, size):
+    """``_rows_first`` (a running count) against NumPy's stable argsort, on random masks and
+    on all-chosen and none-chosen ones."""
+    for chosen in (rng.random(size) < 0.3, np.ones(size, bool), np.zeros(size, bool)):
+        rows, count = jax.jit(certified._rows_first)(chosen)
+        np.testing.assert_array_equal(np.asarray(rows), np.argsort(~chosen, kind="stable"))
+        assert int(count) == int(chosen.sum())
 
 
 def test_paths_not_to_prove_stop_at_the_samples(rng):

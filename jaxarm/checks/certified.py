@@ -567,6 +567,19 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, proof_margi
     return out
 
 
+def _rows_first(chosen):
+    """The rows where ``chosen`` (shape (B,), bool) is true, in order, then the others in
+    order (int32, shape (B,)), and how many are chosen: ``argsort(~chosen, stable=True)`` by a
+    running count. The sort took about a seventh of paper-case-1's certified search on CPU
+    (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Rows first by a running
+    count, not a sort")."""
+    row = jnp.arange(chosen.shape[0], dtype=jnp.int32)
+    before = jnp.cumsum(chosen, dtype=jnp.int32) - chosen  # chosen rows before this one
+    count = before[-1] + chosen[-1]
+    place = jnp.where(chosen, before, count + row - before)
+    return jnp.zeros_like(row).at[place].set(row, unique_indices=True), count
+
+
 def search_spare(lengths):
     """cm, shape (): what a search's proofs keep beyond the margin (``check``'s ``spare``):
     2**-20 times the arm's reach, 8 to 16 float32 spacings there.
@@ -615,13 +628,11 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None, free_only=Non
     sample_witness = ~(nearest >= 0)
     unproved = ~sample_witness & (False if prove is None else ~prove)
     open_ = ~sample_witness & ~unproved
-    windows = _compacted_window_pass(motion, jnp.argsort(~open_, stable=True).astype(jnp.int32),
-                                     open_.sum(dtype=jnp.int32), degree, n_samples,
+    windows = _compacted_window_pass(motion, *_rows_first(open_), degree, n_samples,
                                      proof_margin)
     needs_work = open_ & (windows.failing != 0).any(axis=1)
 
-    work_rows = jnp.argsort(~needs_work, stable=True).astype(jnp.int32)
-    n_work = needs_work.sum(dtype=jnp.int32)
+    work_rows, n_work = _rows_first(needs_work)
     stop_early = jnp.zeros(x.shape[:1], bool) if free_only is None else free_only
     bisect = functools.partial(
         _bisect, motion, _Work(windows.failing, closest, stop_early, work_rows, n_work),
