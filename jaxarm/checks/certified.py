@@ -570,7 +570,7 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, proof_margi
 def _rows_first(chosen):
     """The rows where ``chosen`` (shape (B,), bool) is true, in order, then the others in
     order (int32, shape (B,)), and how many are chosen: ``argsort(~chosen, stable=True)`` by a
-    running count. The sort took about a seventh of paper-case-1's certified search on CPU
+    running count: on CPU the sort was a sizeable part of a certified search
     (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Rows first by a running
     count, not a sort")."""
     row = jnp.arange(chosen.shape[0], dtype=jnp.int32)
