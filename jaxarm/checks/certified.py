@@ -574,8 +574,8 @@ def _rows_first(chosen):
     (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Rows first by a running
     count, not a sort")."""
     row = jnp.arange(chosen.shape[0], dtype=jnp.int32)
-    before = jnp.cumsum(chosen, dtype=jnp.int32) - chosen  # chosen rows before this one
-    count = before[-1] + chosen[-1]
+    running = jnp.cumsum(chosen, dtype=jnp.int32)
+    before, count = running - chosen, running[-1]  # chosen rows before this one; all chosen
     place = jnp.where(chosen, before, count + row - before)
     return jnp.zeros_like(row).at[place].set(row, unique_indices=True), count
 
