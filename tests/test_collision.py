@@ -258,13 +258,26 @@ def swing_shortfalls(lengths, world, about_centre: list, radius) -> list:
             zip(collision.link_swings(lengths, speed, radius), clearance)]
 
 
+def third_order_shortfalls(lengths, world, about_centre: list, radius) -> list:
+    """The sweep bound's third-order part alone: each link's ``radius^3 / 6`` times its
+    ``LinkMotion.jerk`` less the gap of its end points' Bezier triangles."""
+    shortfalls = []
+    for motion in collision.link_motions(lengths, about_centre, radius):
+        parts = world_lib.separation_parts(*motion.near, *motion.far, world)
+        shortfalls.append(radius**3 / 6 * motion.jerk
+                          - collision._bent_hull_separation(world, motion, radius, parts))
+    return shortfalls
+
+
 @pytest.mark.parametrize("bound_fn", [collision.sweep_shortfalls, collision.drift_shortfalls,
-                                      swing_shortfalls], ids=["sweep", "drift", "swing"])
+                                      swing_shortfalls, third_order_shortfalls],
+                         ids=["sweep", "drift", "swing", "third-order"])
 @pytest.mark.parametrize("degree", [6, 8])
 def test_piece_bounds_hold_on_a_dense_grid(rng, degree, bound_fn):
     """Over a piece ``|r - c| <= radius``, each link's distance to the nearest obstacle (shapely,
-    41 times) is at least minus its ``sweep_shortfalls``, its ``drift_shortfalls`` and its
-    first-order swing bound (margin 0), and each bound proves many pieces of moderate radius."""
+    41 times) is at least minus its ``sweep_shortfalls``, its ``drift_shortfalls``, its
+    first-order swing bound and the sweep's third-order part alone (margin 0), and each bound
+    proves many pieces of moderate radius."""
     problems = random_world_problems(rng, 12, collision="certified")
     with_polygons = [p for p in problems if len(p.world.boxes) + len(p.world.polygons)]
     assert with_polygons and len(with_polygons) < len(problems)

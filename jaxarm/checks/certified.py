@@ -44,7 +44,9 @@ Three stages, all batched over paths.
      beside one, where the hull covers part of the obstacle. A link sweeping past an
      obstacle at a small clearance c is proved with pieces of radius about ``sqrt(c)``
      instead of c, so a path the swarm drives against an obstacle costs a few pieces
-     instead of a number growing as ``1 / sqrt(c)``.
+     instead of a number growing as ``1 / sqrt(c)``. A third-order bound (the end points'
+     quadratic motion, less ``radius^3 / 6`` times a bound on the third derivative) counts
+     where it is better: a grazing path bends away from the obstacle.
 
    A piece ends as
 

@@ -15,7 +15,7 @@ rules compare it times the path's travelling distance (``constraints.path_measur
 
 The certified continuous check lives in ``jaxarm.checks.certified``; the bounds it tests
 pieces of a motion with are here: ``drift_shortfalls`` (how far a link's points can drift over
-a piece), ``link_swings`` (first order) and ``sweep_shortfalls`` (second order, with
+a piece), ``link_swings`` (first order) and ``sweep_shortfalls`` (second and third order, with
 ``hull_separation``).
 """
 
@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import math
 from typing import NamedTuple
 
 import jax
@@ -189,21 +190,25 @@ def taylor_speed_bound(coefficients: list, radius):
 
 
 class LinkMotion(NamedTuple):
-    """One link over a piece ``|r - c| <= radius``: its end points and their velocities at c
-    (cm, cm per unit r; each of shape (...,)), and a bound on the acceleration of any of its
-    points over the piece."""
+    """One link over a piece ``|r - c| <= radius``: its end points and their first and second
+    derivatives at c (cm, cm per unit r, cm per unit r squared; each of shape (...,)), and
+    bounds on the second and third derivatives of any of its points over the piece."""
 
     near: tuple  # (x, y) of the end at the joint
     far: tuple  # (x, y) of the far end
     near_velocity: tuple
     far_velocity: tuple
     acceleration: jax.Array  # >= |X''(r)| for every point X of the link, |r - c| <= radius
+    near_curvature: tuple  # the near end's second derivative at c
+    far_curvature: tuple
+    jerk: jax.Array  # >= |X^(3)(r)| for every point X of the link, |r - c| <= radius
 
     @classmethod
     def zeros(cls, like: jax.Array) -> "LinkMotion":
         """A motion of zeros shaped as ``like``."""
         zero = jnp.zeros_like(like)
-        return cls((zero, zero), (zero, zero), (zero, zero), (zero, zero), zero)
+        return cls((zero, zero), (zero, zero), (zero, zero), (zero, zero), zero, (zero, zero),
+                   (zero, zero), zero)
 
     @property
     def top_speed(self) -> jax.Array:
@@ -220,26 +225,36 @@ def link_motions(lengths, about_centre: list, radius) -> list:
     A point of link k at distance t along it is ``sum_{i<k} l_i u(phi_i) + t u(phi_k)``
     (``phi_i = theta_1 + ... + theta_i``), so ``|X''| <= sum_{i<=k} l_i (|phi_i''| +
     phi_i'^2)``, with bounds on ``|phi_i'|`` and ``|phi_i''|`` over the piece from its exact
-    Taylor expansion.
+    Taylor expansion; likewise ``|X^(3)| <= sum_{i<=k} l_i (|phi_i^(3)| + |phi_i'|^3 + 3
+    |phi_i'| |phi_i''|)`` (``u(phi)^(3) = (phi^(3) - phi'^3) J u - 3 phi' phi'' u``).
     """
     degree = len(about_centre) - 1
     lengths = jnp.asarray(lengths, dtype=about_centre[0][0].dtype)
     phi = [list(itertools.accumulate(order)) for order in about_centre]  # phi[m][i]
-    x = y = vx = vy = jnp.zeros_like(about_centre[0][0])
-    acceleration = 0.0
+    x = y = vx = vy = ax = ay = jnp.zeros_like(about_centre[0][0])
+    acceleration = jerk = 0.0
+
+    def derivative_bound(k, order):  # >= |phi_k^(order)| over the piece
+        return sum(math.perm(m, order) * jnp.abs(phi[m][k]) * radius ** (m - order)
+                   for m in range(order, degree + 1))
+
     motions = []
     for k in range(len(phi[0])):
         rate = taylor_speed_bound([order[k] for order in phi], radius)
-        turn = sum(m * (m - 1) * jnp.abs(phi[m][k]) * radius ** (m - 2)
-                   for m in range(2, degree + 1))
+        turn = derivative_bound(k, 2)
         acceleration = acceleration + lengths[k] * (turn + rate * rate)
+        jerk = jerk + lengths[k] * (derivative_bound(k, 3) + rate * rate * rate
+                                    + 3 * rate * turn)
         sine, cosine = sincos(phi[0][k])
+        speed, bend = phi[1][k], 2 * phi[2][k]  # phi_k' and phi_k'' at c
         next_x, next_y = x + lengths[k] * cosine, y + lengths[k] * sine
-        next_vx = vx - lengths[k] * phi[1][k] * sine
-        next_vy = vy + lengths[k] * phi[1][k] * cosine
+        next_vx = vx - lengths[k] * speed * sine
+        next_vy = vy + lengths[k] * speed * cosine
+        next_ax = ax - lengths[k] * (bend * sine + speed * speed * cosine)
+        next_ay = ay + lengths[k] * (bend * cosine - speed * speed * sine)
         motions.append(LinkMotion((x, y), (next_x, next_y), (vx, vy), (next_vx, next_vy),
-                                   acceleration))
-        x, y, vx, vy = next_x, next_y, next_vx, next_vy
+                                  acceleration, (ax, ay), (next_ax, next_ay), jerk))
+        x, y, vx, vy, ax, ay = next_x, next_y, next_vx, next_vy, next_ax, next_ay
     return motions
 
 
@@ -303,6 +318,13 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     approach, is proved with pieces of radius about ``sqrt(c / a)``: a few pieces where the
     first-order bound (``link_swings``) needs ``1 / sqrt(c)`` of them.
 
+    A third-order bound counts too, the better of the two per link: the end points' quadratic
+    parts ``q + s q' + s^2 / 2 q''`` in the hull of their Bezier triangles
+    (``_bent_hull_separation``), less ``radius^3 / 6`` times a bound on the third derivative of
+    the link's points. A grazing path bends away from the obstacle, which the second-order
+    remainder counts against it (``benchmarks/RESULTS.md``, *Decisions and negative results*,
+    "A third-order bound in the bisection").
+
     Args:
       lengths, world: the problem's arrays.
       about_centre: ``about_centre[m][j] = theta_j^(m)(c) / m!`` for m = 0 .. degree, each
@@ -337,23 +359,49 @@ def motion_shortfalls(world, motions: list, radius, margin=0.0, separations=None
         hull = hull_separation(
             world, patch.corners(), circle_distances=(parts.circles, spread), patch=patch,
             polygon_distances=None if parts.polygons is None else (parts.polygons, spread))
-        shortfalls.append(0.5 * radius * radius * motion.acceleration - (hull - margin))
+        second = 0.5 * radius * radius * motion.acceleration - (hull - margin)
+        third = radius ** 3 / 6 * motion.jerk - (_bent_hull_separation(
+            world, motion, radius, parts) - margin)
+        shortfalls.append(jnp.minimum(second, third))
     return shortfalls
 
 
+def _bent_hull_separation(world, motion: LinkMotion, radius, parts):
+    """A lower bound on the distance from the obstacles to the link's quadratic part over the
+    piece: each end point as ``q + s q' + s^2 / 2 q''`` (``|s| <= radius``), an arc inside the
+    triangle of its Bezier control points ``q +/- radius q' + radius^2 / 2 q''`` and ``q -
+    radius^2 / 2 q''``, so the link's quadratic part lies in the hull of the two triangles.
+    Its separating axes: the triangles' edges and the obstacles' (``hull_separation``); the
+    hull's other edges proved no more (``benchmarks/RESULTS.md``, as ``sweep_shortfalls``)."""
+    half = 0.5 * radius * radius
+    corners, reach = [], 0.0
+    for (x, y), (vx, vy), (ax, ay) in ((motion.near, motion.near_velocity,
+                                        motion.near_curvature),
+                                       (motion.far, motion.far_velocity, motion.far_curvature)):
+        corners += [(x - radius * vx + half * ax, y - radius * vy + half * ay),
+                    (x + radius * vx + half * ax, y + radius * vy + half * ay),
+                    (x - half * ax, y - half * ay)]
+        reach = jnp.maximum(reach, radius * jnp.sqrt(vx * vx + vy * vy)
+                            + half * jnp.sqrt(ax * ax + ay * ay))
+    return hull_separation(world, corners, circle_distances=(parts.circles, reach),
+                           polygon_distances=None if parts.polygons is None
+                           else (parts.polygons, reach), pairs=_TRIANGLE_EDGES)
+
+
 _CORNER_PAIRS = tuple(itertools.combinations(range(4), 2))  # every hull edge is one of them
+_TRIANGLE_EDGES = ((0, 1), (0, 2), (1, 2), (3, 4), (3, 5), (4, 5))  # ``_bent_hull_separation``
 
 
 @rank_promotion_allowed
 def hull_separation(world, corners: list, circle_distances=None, patch=None,
-                    polygon_distances=None):
-    """A lower bound on the signed distance from the convex hull of four points to the nearest
+                    polygon_distances=None, pairs=_CORNER_PAIRS):
+    """A lower bound on the signed distance from the convex hull of points to the nearest
     obstacle (cm; negative where they may overlap: at most minus the penetration depth);
     +inf without obstacles.
 
     The largest gap between the projections of the hull and of an obstacle on a few axes
-    (separating axes): the normals of the six segments between the corners (every hull edge is
-    one of them), for circles the axis from the centre through the nearest corner (with it, a
+    (separating axes): the normals of the segments between the corners that ``pairs`` names
+    (by default all six of four corners: every hull edge is one of them), for circles the axis from the centre through the nearest corner (with it, a
     circle's gap is its exact distance from the hull when apart), and for polygons their edge
     normals. A gap on any axis is at most the
     distance (where the sets overlap, every axis's overlap is at least the smallest
@@ -363,7 +411,7 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None,
     distances and a test for an obstacle inside the hull.
 
     Args:
-      corners: four ``(x, y)`` pairs, each coordinate of shape (...,).
+      corners: ``(x, y)`` pairs, each coordinate of shape (...,).
       circle_distances: optional ``(distances, spread)``: every circle slot's distance from
         a set within ``spread`` of every point of the hull (``world.circle_slots``; each of
         shape (...,)). Then only the nearest circle by that distance gets separating axes;
@@ -380,7 +428,7 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None,
     """
     dtype = corners[0][0].dtype
     axes = []  # (nx, ny, the hull's lowest and highest projection on the axis)
-    for i, j in _CORNER_PAIRS:
+    for i, j in pairs:
         nx, ny = world_lib.unit_normal(*corners[i], *corners[j])
         axes.append((nx, ny, *_projection_range(nx, ny, corners)))
     nearest = jnp.full(corners[0][0].shape, jnp.inf, dtype)
