@@ -251,7 +251,7 @@ def test_hull_separation_with_the_nearest_obstacle_alone_is_a_lower_bound(rng, k
 def swing_shortfalls(lengths, world, about_centre: list, radius) -> list:
     """The certified piece test's first-order bound: each link's swing (``link_swings``) less
     its exact clearance at the centre."""
-    speed = [collision.taylor_speed_bound([order[j] for order in about_centre], radius)
+    speed = [collision.taylor_derivative_bound([order[j] for order in about_centre], radius)
              for j in range(len(about_centre[0]))]
     clearance = collision.posture_clearance_bound(lengths, world, about_centre[0], exact=True)
     return [swing - bound for swing, bound in

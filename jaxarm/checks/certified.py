@@ -339,8 +339,8 @@ def _test_pieces(motion: _Motion, pieces: _Piece, tables, step, margin, busy):
             for term in reversed(terms[:-1]):  # Horner in the shift
                 value = [t + shift * v for t, v in zip(term, value)]
             about_centre.append(value)
-        speed = [collision_lib.taylor_speed_bound([order[j] for order in about_centre],
-                                                  reach_radius)
+        speed = [collision_lib.taylor_derivative_bound([order[j] for order in about_centre],
+                                                       reach_radius)
                  for j in range(n_joints)]
         return (collision_lib.link_swings(lengths, speed, reach_radius),
                 collision_lib.link_motions(lengths, about_centre, reach_radius))

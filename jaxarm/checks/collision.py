@@ -180,13 +180,13 @@ def link_swings(lengths, speed: list, radius) -> list:
             for k in range(len(speed))]
 
 
-def taylor_speed_bound(coefficients: list, radius):
-    """A bound on ``|f'(r)|`` for ``|r - c| <= radius``, from a polynomial's Taylor
+def taylor_derivative_bound(coefficients: list, radius, order: int = 1):
+    """A bound on ``|f^(order)(r)|`` for ``|r - c| <= radius``, from a polynomial's Taylor
     coefficients about c (``coefficients[m] = f^(m)(c) / m!``, each of shape (...,)):
-    ``sum_m m |coefficients[m]| radius^(m - 1)``, the triangle inequality on its exact
-    expansion."""
-    return sum(m * jnp.abs(coefficients[m]) * radius ** (m - 1)
-               for m in range(1, len(coefficients)))
+    ``sum_m m! / (m - order)! |coefficients[m]| radius^(m - order)``, the triangle inequality
+    on its exact expansion."""
+    return sum(math.perm(m, order) * jnp.abs(coefficients[m]) * radius ** (m - order)
+               for m in range(order, len(coefficients)))
 
 
 class LinkMotion(NamedTuple):
@@ -228,23 +228,16 @@ def link_motions(lengths, about_centre: list, radius) -> list:
     Taylor expansion; likewise ``|X^(3)| <= sum_{i<=k} l_i (|phi_i^(3)| + |phi_i'|^3 + 3
     |phi_i'| |phi_i''|)`` (``u(phi)^(3) = (phi^(3) - phi'^3) J u - 3 phi' phi'' u``).
     """
-    degree = len(about_centre) - 1
     lengths = jnp.asarray(lengths, dtype=about_centre[0][0].dtype)
     phi = [list(itertools.accumulate(order)) for order in about_centre]  # phi[m][i]
     x = y = vx = vy = ax = ay = jnp.zeros_like(about_centre[0][0])
     acceleration = jerk = 0.0
-
-    def derivative_bound(k, order):  # >= |phi_k^(order)| over the piece
-        return sum(math.perm(m, order) * jnp.abs(phi[m][k]) * radius ** (m - order)
-                   for m in range(order, degree + 1))
-
     motions = []
     for k in range(len(phi[0])):
-        rate = taylor_speed_bound([order[k] for order in phi], radius)
-        turn = derivative_bound(k, 2)
+        rate, turn, twist = (taylor_derivative_bound([order[k] for order in phi], radius, m)
+                             for m in (1, 2, 3))
         acceleration = acceleration + lengths[k] * (turn + rate * rate)
-        jerk = jerk + lengths[k] * (derivative_bound(k, 3) + rate * rate * rate
-                                    + 3 * rate * turn)
+        jerk = jerk + lengths[k] * (twist + rate * rate * rate + 3 * rate * turn)
         sine, cosine = sincos(phi[0][k])
         speed, bend = phi[1][k], 2 * phi[2][k]  # phi_k' and phi_k'' at c
         next_x, next_y = x + lengths[k] * cosine, y + lengths[k] * sine
@@ -281,7 +274,7 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     Cheaper than ``sweep_shortfalls`` (no axes of the hull's own edges), which the bisection
     then uses on what fails here.
     """
-    speed = [taylor_speed_bound([order[j] for order in about_centre], radius)
+    speed = [taylor_derivative_bound([order[j] for order in about_centre], radius)
              for j in range(len(about_centre[0]))]
     swings = link_swings(lengths, speed, radius)
     shortfalls = []
@@ -401,10 +394,10 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None,
 
     The largest gap between the projections of the hull and of an obstacle on a few axes
     (separating axes): the normals of the segments between the corners that ``pairs`` names
-    (by default all six of four corners: every hull edge is one of them), for circles the axis from the centre through the nearest corner (with it, a
-    circle's gap is its exact distance from the hull when apart), and for polygons their edge
-    normals. A gap on any axis is at most the
-    distance (where the sets overlap, every axis's overlap is at least the smallest
+    (by default all six of four corners: every hull edge is one of them), for circles the axis
+    from the centre through the nearest corner (with it, a circle's gap is its exact distance
+    from the hull when apart), and for polygons their edge normals. A gap on any axis is at
+    most the distance (where the sets overlap, every axis's overlap is at least the smallest
     translation that parts them), and on the axis normal to the hull edge facing an obstacle
     it is the distance: the case of a link sweeping past an obstacle. Near a corner of both it
     can be less. It is cheaper than the hull's exact distance, which takes six segments'
