@@ -260,13 +260,11 @@ def swing_shortfalls(lengths, world, about_centre: list, radius) -> list:
 
 def third_order_shortfalls(lengths, world, about_centre: list, radius) -> list:
     """The sweep bound's third-order part alone: each link's ``radius^3 / 6`` times its
-    ``LinkMotion.jerk`` less the gap of its end points' Bezier triangles."""
-    shortfalls = []
-    for motion in collision.link_motions(lengths, about_centre, radius):
-        parts = world_lib.separation_parts(*motion.near, *motion.far, world)
-        shortfalls.append(radius**3 / 6 * motion.jerk
-                          - collision._bent_hull_separation(world, motion, radius, parts))
-    return shortfalls
+    ``LinkMotion.jerk`` less the gap of the hull of its ``bent_corners`` alone (on that
+    hull's own axes)."""
+    return [radius**3 / 6 * motion.jerk
+            - collision.hull_separation(world, collision.bent_corners(motion, radius))
+            for motion in collision.link_motions(lengths, about_centre, radius)]
 
 
 @pytest.mark.parametrize("bound_fn", [collision.sweep_shortfalls, collision.drift_shortfalls,

@@ -311,12 +311,13 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     approach, is proved with pieces of radius about ``sqrt(c / a)``: a few pieces where the
     first-order bound (``link_swings``) needs ``1 / sqrt(c)`` of them.
 
-    A third-order bound counts too, the better of the two per link: the end points' quadratic
-    parts ``q + s q' + s^2 / 2 q''`` in the hull of their Bezier triangles
-    (``_bent_hull_separation``), less ``radius^3 / 6`` times a bound on the third derivative of
-    the link's points. A grazing path bends away from the obstacle, which the second-order
-    remainder counts against it (``benchmarks/RESULTS.md``, *Decisions and negative results*,
-    "A third-order bound in the bisection").
+    A third-order bound counts too, the better of the two per obstacle: the link's quadratic
+    part (its end points as ``q + s q' + s^2 / 2 q''``) lies in the hull of its
+    ``bent_corners``, within ``radius^3 / 6 * J_k`` of the link (``LinkMotion.jerk``), and that
+    hull is tested on the first hull's axes (``hull_separation``'s ``bent``). It holds the
+    exact curvature at the centre where the second-order remainder has a bound on the
+    acceleration anywhere on the link and the piece (``benchmarks/RESULTS.md``, *Decisions and
+    negative results*, "A third-order bound in the bisection").
 
     Args:
       lengths, world: the problem's arrays.
@@ -349,54 +350,49 @@ def motion_shortfalls(world, motions: list, radius, margin=0.0, separations=None
         spread = radius * motion.top_speed
         patch = _Patch((x, y), (next_x, next_y), (radius * vx, radius * vy),
                        (radius * next_vx, radius * next_vy))
+        second = 0.5 * radius * radius * motion.acceleration
+        third = radius ** 3 / 6 * motion.jerk
         hull = hull_separation(
             world, patch.corners(), circle_distances=(parts.circles, spread), patch=patch,
-            polygon_distances=None if parts.polygons is None else (parts.polygons, spread))
-        second = 0.5 * radius * radius * motion.acceleration - (hull - margin)
-        third = radius ** 3 / 6 * motion.jerk - (_bent_hull_separation(
-            world, motion, radius, parts) - margin)
-        shortfalls.append(jnp.minimum(second, third))
+            polygon_distances=None if parts.polygons is None else (parts.polygons, spread),
+            bent=(bent_corners(motion, radius), third - second))
+        shortfalls.append(second - (hull - margin))
     return shortfalls
 
 
-def _bent_hull_separation(world, motion: LinkMotion, radius, parts):
-    """A lower bound on the distance from the obstacles to the link's quadratic part over the
-    piece: each end point as ``q + s q' + s^2 / 2 q''`` (``|s| <= radius``), an arc inside the
-    triangle of its Bezier control points ``q +/- radius q' + radius^2 / 2 q''`` and ``q -
-    radius^2 / 2 q''``, so the link's quadratic part lies in the hull of the two triangles.
-    Its separating axes: the triangles' edges and the obstacles' (``hull_separation``); the
-    hull's other edges proved no more (``benchmarks/RESULTS.md``, as ``sweep_shortfalls``)."""
+def bent_corners(motion: LinkMotion, radius) -> list:
+    """Six points whose convex hull holds the link's quadratic part over the piece: each end
+    point as ``q + s q' + s^2 / 2 q''`` (``|s| <= radius``) is an arc inside the triangle of
+    its Bezier control points ``q +/- radius q' + radius^2 / 2 q''`` and ``q - radius^2 / 2
+    q''``, and the link's points are convex combinations of its ends. Ordered as
+    ``_Patch.corners`` (the two chords' ends), then the two apexes."""
     half = 0.5 * radius * radius
-    corners, reach = [], 0.0
+    chords, apexes = [], []
     for (x, y), (vx, vy), (ax, ay) in ((motion.near, motion.near_velocity,
                                         motion.near_curvature),
                                        (motion.far, motion.far_velocity, motion.far_curvature)):
-        corners += [(x - radius * vx + half * ax, y - radius * vy + half * ay),
-                    (x + radius * vx + half * ax, y + radius * vy + half * ay),
-                    (x - half * ax, y - half * ay)]
-        reach = jnp.maximum(reach, radius * jnp.sqrt(vx * vx + vy * vy)
-                            + half * jnp.sqrt(ax * ax + ay * ay))
-    return hull_separation(world, corners, circle_distances=(parts.circles, reach),
-                           polygon_distances=None if parts.polygons is None
-                           else (parts.polygons, reach), pairs=_TRIANGLE_EDGES)
+        ends = [(x - radius * vx + half * ax, y - radius * vy + half * ay),
+                (x + radius * vx + half * ax, y + radius * vy + half * ay)]
+        chords += ends if not chords else ends[::-1]
+        apexes.append((x - half * ax, y - half * ay))
+    return chords + apexes
 
 
 _CORNER_PAIRS = tuple(itertools.combinations(range(4), 2))  # every hull edge is one of them
-_TRIANGLE_EDGES = ((0, 1), (0, 2), (1, 2), (3, 4), (3, 5), (4, 5))  # ``_bent_hull_separation``
 
 
 @rank_promotion_allowed
 def hull_separation(world, corners: list, circle_distances=None, patch=None,
-                    polygon_distances=None, pairs=_CORNER_PAIRS):
+                    polygon_distances=None, bent=None):
     """A lower bound on the signed distance from the convex hull of points to the nearest
     obstacle (cm; negative where they may overlap: at most minus the penetration depth);
     +inf without obstacles.
 
     The largest gap between the projections of the hull and of an obstacle on a few axes
-    (separating axes): the normals of the segments between the corners that ``pairs`` names
-    (by default all six of four corners: every hull edge is one of them), for circles the axis
-    from the centre through the nearest corner (with it, a circle's gap is its exact distance
-    from the hull when apart), and for polygons their edge normals. A gap on any axis is at
+    (separating axes): the normals of the six segments between the first four corners (with
+    four corners, every hull edge is one of them), for circles the axis from the centre
+    through the nearest corner (with it, a circle's gap is its exact distance from the hull
+    when apart), and for polygons their edge normals. A gap on any axis is at
     most the distance (where the sets overlap, every axis's overlap is at least the smallest
     translation that parts them), and on the axis normal to the hull edge facing an obstacle
     it is the distance: the case of a link sweeping past an obstacle. Near a corner of both it
@@ -404,7 +400,7 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None,
     distances and a test for an obstacle inside the hull.
 
     Args:
-      corners: ``(x, y)`` pairs, each coordinate of shape (...,).
+      corners: at least four ``(x, y)`` pairs, each coordinate of shape (...,).
       circle_distances: optional ``(distances, spread)``: every circle slot's distance from
         a set within ``spread`` of every point of the hull (``world.circle_slots``; each of
         shape (...,)). Then only the nearest circle by that distance gets separating axes;
@@ -415,23 +411,29 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None,
       polygon_distances: optional ``(distances, spread)`` as ``circle_distances``, for the
         polygon slots (``world.separation_parts(...).polygons``, shape (n_polygon_slots,
         ...)): only the nearest polygon gets separating axes and the turning line.
+      bent: optional ``(corners, allowance)``: a second hull, tested on the same axes (and
+        its own nearest corner's for circles); each tested obstacle's gap is then the better
+        of the first hull's and the second's less ``allowance`` (shape (...,)). The axes'
+        projections of the obstacles are shared, so it costs the second hull's projections.
 
     Returns:
       Array of shape (...,).
     """
     dtype = corners[0][0].dtype
-    axes = []  # (nx, ny, the hull's lowest and highest projection on the axis)
-    for i, j in pairs:
+    hulls = [(corners, [], 0.0)] + ([(bent[0], [], bent[1])] if bent is not None else [])
+    for i, j in _CORNER_PAIRS:
         nx, ny = world_lib.unit_normal(*corners[i], *corners[j])
-        axes.append((nx, ny, *_projection_range(nx, ny, corners)))
+        for points, axes, _ in hulls:  # (nx, ny, the hull's lowest and highest projection)
+            axes.append((nx, ny, *_projection_range(nx, ny, points)))
     nearest = jnp.full(corners[0][0].shape, jnp.inf, dtype)
     circles = jnp.asarray(world.circles, dtype)
 
     def circle_gap(px, py, radius):
-        gap = _circle_gap(px, py, radius, axes, corners)
-        if patch is None:
-            return gap
-        return jnp.maximum(gap, _line_gap(*patch.line_sides(px, py), patch.longest) - radius)
+        gaps = [_circle_gap(px, py, radius, axes, points) - allowance
+                for points, axes, allowance in hulls]
+        if patch is not None:
+            gaps.append(_line_gap(*patch.line_sides(px, py), patch.longest) - radius)
+        return functools.reduce(jnp.maximum, gaps)
     if circle_distances is not None and circles.shape[0] > 1:
         distances, spread = circle_distances
         picked, closest, others = _nearest_slot(distances, [circles[:, c] for c in range(3)])
@@ -451,12 +453,12 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None,
         if polygon_distances is not None and n_polygons > 1:
             distances, spread = polygon_distances
             picked, closest, others = _nearest_slot(list(distances), per_vertex)
-            gap = _polygon_gap(picked, n_vertices, axes, corners, patch)
+            gap = _polygon_gap(picked, n_vertices, hulls, patch)
             nearest = jnp.minimum(nearest, jnp.minimum(
                 jnp.where(closest < jnp.inf, gap, jnp.inf), others - spread))
         else:
             slots = functools.partial(world_lib.leading_slots, ndim=corners[0][0].ndim)
-            gap = _polygon_gap([slots(a) for a in per_vertex], n_vertices, axes, corners, patch)
+            gap = _polygon_gap([slots(a) for a in per_vertex], n_vertices, hulls, patch)
             nearest = jnp.minimum(nearest, jnp.where(slots(world.polygon_valid), gap,
                                                      jnp.inf).min(axis=0))
     return nearest
@@ -477,22 +479,29 @@ def _nearest_slot(distances: list, fields: list) -> tuple:
     return picked, closest, others
 
 
-def _polygon_gap(per_vertex: list, n_vertices: int, axes: list, corners: list, patch):
-    """The separating-axis gap between the hull of ``corners`` (on its ``axes``) and polygons
-    given vertex by vertex (``per_vertex``: x, y, normal x, normal y, low extent, high extent,
-    edge valid, each a list of ``n_vertices`` arrays that broadcast against the corners),
-    with the better of it and ``patch``'s turning line when given."""
+def _polygon_gap(per_vertex: list, n_vertices: int, hulls: list, patch):
+    """The separating-axis gap between hulls and polygons given vertex by vertex
+    (``per_vertex``: x, y, normal x, normal y, low extent, high extent, edge valid, each a
+    list of ``n_vertices`` arrays that broadcast against the corners): the best over
+    ``hulls`` (``(corners, axes, allowance)``, the axes the same for each) of each hull's gap
+    less its allowance, and ``patch``'s turning line when given."""
     xs, ys, normal_xs, normal_ys, lows, highs, valid = (
         per_vertex[i * n_vertices:(i + 1) * n_vertices] for i in range(7))
-    gap = None
+    gaps = [None] * len(hulls)
     for v in range(n_vertices):  # the polygons' edge normals
-        low, high = _projection_range(normal_xs[v], normal_ys[v], corners)
-        edge_gap = jnp.where(valid[v], jnp.maximum(low - highs[v], lows[v] - high), -jnp.inf)
-        gap = edge_gap if gap is None else jnp.maximum(gap, edge_gap)
-    for nx, ny, low, high in axes:  # the hull's
+        for h, (points, _, _) in enumerate(hulls):
+            low, high = _projection_range(normal_xs[v], normal_ys[v], points)
+            edge_gap = jnp.where(valid[v], jnp.maximum(low - highs[v], lows[v] - high),
+                                 -jnp.inf)
+            gaps[h] = edge_gap if gaps[h] is None else jnp.maximum(gaps[h], edge_gap)
+    for a, (nx, ny, _, _) in enumerate(hulls[0][1]):  # the hulls' axes
         along = [nx * x + ny * y for x, y in zip(xs, ys)]
         lowest, highest = _valid_range(along, along, valid)
-        gap = jnp.maximum(gap, jnp.maximum(lowest - high, low - highest))
+        for h, (_, axes, _) in enumerate(hulls):
+            low, high = axes[a][2:]
+            gaps[h] = jnp.maximum(gaps[h], jnp.maximum(lowest - high, low - highest))
+    gap = functools.reduce(jnp.maximum, [gap - allowance
+                                         for gap, (_, _, allowance) in zip(gaps, hulls)])
     if patch is not None:  # every vertex on one side of the link's turning line
         sides = [patch.line_sides(x, y) for x, y in zip(xs, ys)]
         below, above = _valid_range([side[0] for side in sides], [side[1] for side in sides],
