@@ -44,9 +44,10 @@ Three stages, all batched over paths.
      beside one, where the hull covers part of the obstacle. A link sweeping past an
      obstacle at a small clearance c is proved with pieces of radius about ``sqrt(c)``
      instead of c, so a path the swarm drives against an obstacle costs a few pieces
-     instead of a number growing as ``1 / sqrt(c)``. A third-order bound counts per obstacle
-     where it is better: the hull of the end points' quadratic motion (their curvature at the
-     centre, exact), less ``radius^3 / 6`` times a bound on the third derivative.
+     instead of a number growing as ``1 / sqrt(c)``. In a world of circles alone, a
+     third-order bound counts per circle where it is better: the hull of the end points'
+     quadratic motion (their curvature at the centre, exact), less ``radius^3 / 6`` times a
+     bound on the third derivative.
 
    A piece ends as
 

@@ -311,13 +311,14 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     approach, is proved with pieces of radius about ``sqrt(c / a)``: a few pieces where the
     first-order bound (``link_swings``) needs ``1 / sqrt(c)`` of them.
 
-    A third-order bound counts too, the better of the two per obstacle: the link's quadratic
-    part (its end points as ``q + s q' + s^2 / 2 q''``) lies in the hull of its
-    ``bent_corners``, within ``radius^3 / 6 * J_k`` of the link (``LinkMotion.jerk``), and that
-    hull is tested on the first hull's axes (``hull_separation``'s ``bent``). It holds the
-    exact curvature at the centre where the second-order remainder has a bound on the
-    acceleration anywhere on the link and the piece (``benchmarks/RESULTS.md``, *Decisions and
-    negative results*, "A third-order bound in the bisection").
+    In a world of circles alone a third-order bound counts too, the better of the two per
+    circle: the link's quadratic part (its end points as ``q + s q' + s^2 / 2 q''``) lies in
+    the hull of its ``bent_corners``, within ``radius^3 / 6 * J_k`` of the link
+    (``LinkMotion.jerk``), and that hull is tested on the first hull's axes
+    (``hull_separation``'s ``bent``). It has the exact curvature at the centre where the
+    second-order remainder has a bound on the acceleration anywhere on the link and the piece.
+    With polygons it cost more time than its fewer pieces saved (``benchmarks/RESULTS.md``,
+    *Decisions and negative results*, "A third-order bound in the bisection").
 
     Args:
       lengths, world: the problem's arrays.
@@ -351,11 +352,13 @@ def motion_shortfalls(world, motions: list, radius, margin=0.0, separations=None
         patch = _Patch((x, y), (next_x, next_y), (radius * vx, radius * vy),
                        (radius * next_vx, radius * next_vy))
         second = 0.5 * radius * radius * motion.acceleration
-        third = radius ** 3 / 6 * motion.jerk
+        bent = None
+        if not world.vertices.shape[0]:  # circles alone: the third-order bound too
+            bent = (bent_corners(motion, radius), radius ** 3 / 6 * motion.jerk - second)
         hull = hull_separation(
             world, patch.corners(), circle_distances=(parts.circles, spread), patch=patch,
             polygon_distances=None if parts.polygons is None else (parts.polygons, spread),
-            bent=(bent_corners(motion, radius), third - second))
+            bent=bent)
         shortfalls.append(second - (hull - margin))
     return shortfalls
 
@@ -411,26 +414,28 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None,
       polygon_distances: optional ``(distances, spread)`` as ``circle_distances``, for the
         polygon slots (``world.separation_parts(...).polygons``, shape (n_polygon_slots,
         ...)): only the nearest polygon gets separating axes and the turning line.
-      bent: optional ``(corners, allowance)``: a second hull, tested on the same axes (and
-        its own nearest corner's for circles); each tested obstacle's gap is then the better
-        of the first hull's and the second's less ``allowance`` (shape (...,)). The axes'
-        projections of the obstacles are shared, so it costs the second hull's projections.
+      bent: optional ``(corners, allowance)``: a second hull, tested against circles on the
+        same axes and its own nearest corner's; each tested circle's gap is then the better of
+        the first hull's and the second's less ``allowance`` (shape (...,)). Polygons get the
+        first hull's gap alone.
 
     Returns:
       Array of shape (...,).
     """
     dtype = corners[0][0].dtype
-    hulls = [(corners, [], 0.0)] + ([(bent[0], [], bent[1])] if bent is not None else [])
+    axes, bent_axes = [], []  # (nx, ny, the hull's lowest and highest projection on the axis)
     for i, j in _CORNER_PAIRS:
         nx, ny = world_lib.unit_normal(*corners[i], *corners[j])
-        for points, axes, _ in hulls:  # (nx, ny, the hull's lowest and highest projection)
-            axes.append((nx, ny, *_projection_range(nx, ny, points)))
+        axes.append((nx, ny, *_projection_range(nx, ny, corners)))
+        if bent is not None:
+            bent_axes.append((nx, ny, *_projection_range(nx, ny, bent[0])))
     nearest = jnp.full(corners[0][0].shape, jnp.inf, dtype)
     circles = jnp.asarray(world.circles, dtype)
 
     def circle_gap(px, py, radius):
-        gaps = [_circle_gap(px, py, radius, axes, points) - allowance
-                for points, axes, allowance in hulls]
+        gaps = [_circle_gap(px, py, radius, axes, corners)]
+        if bent is not None:
+            gaps.append(_circle_gap(px, py, radius, bent_axes, bent[0]) - bent[1])
         if patch is not None:
             gaps.append(_line_gap(*patch.line_sides(px, py), patch.longest) - radius)
         return functools.reduce(jnp.maximum, gaps)
@@ -453,12 +458,12 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None,
         if polygon_distances is not None and n_polygons > 1:
             distances, spread = polygon_distances
             picked, closest, others = _nearest_slot(list(distances), per_vertex)
-            gap = _polygon_gap(picked, n_vertices, hulls, patch)
+            gap = _polygon_gap(picked, n_vertices, axes, corners, patch)
             nearest = jnp.minimum(nearest, jnp.minimum(
                 jnp.where(closest < jnp.inf, gap, jnp.inf), others - spread))
         else:
             slots = functools.partial(world_lib.leading_slots, ndim=corners[0][0].ndim)
-            gap = _polygon_gap([slots(a) for a in per_vertex], n_vertices, hulls, patch)
+            gap = _polygon_gap([slots(a) for a in per_vertex], n_vertices, axes, corners, patch)
             nearest = jnp.minimum(nearest, jnp.where(slots(world.polygon_valid), gap,
                                                      jnp.inf).min(axis=0))
     return nearest
@@ -479,29 +484,22 @@ def _nearest_slot(distances: list, fields: list) -> tuple:
     return picked, closest, others
 
 
-def _polygon_gap(per_vertex: list, n_vertices: int, hulls: list, patch):
-    """The separating-axis gap between hulls and polygons given vertex by vertex
-    (``per_vertex``: x, y, normal x, normal y, low extent, high extent, edge valid, each a
-    list of ``n_vertices`` arrays that broadcast against the corners): the best over
-    ``hulls`` (``(corners, axes, allowance)``, the axes the same for each) of each hull's gap
-    less its allowance, and ``patch``'s turning line when given."""
+def _polygon_gap(per_vertex: list, n_vertices: int, axes: list, corners: list, patch):
+    """The separating-axis gap between the hull of ``corners`` (on its ``axes``) and polygons
+    given vertex by vertex (``per_vertex``: x, y, normal x, normal y, low extent, high extent,
+    edge valid, each a list of ``n_vertices`` arrays that broadcast against the corners),
+    with the better of it and ``patch``'s turning line when given."""
     xs, ys, normal_xs, normal_ys, lows, highs, valid = (
         per_vertex[i * n_vertices:(i + 1) * n_vertices] for i in range(7))
-    gaps = [None] * len(hulls)
+    gap = None
     for v in range(n_vertices):  # the polygons' edge normals
-        for h, (points, _, _) in enumerate(hulls):
-            low, high = _projection_range(normal_xs[v], normal_ys[v], points)
-            edge_gap = jnp.where(valid[v], jnp.maximum(low - highs[v], lows[v] - high),
-                                 -jnp.inf)
-            gaps[h] = edge_gap if gaps[h] is None else jnp.maximum(gaps[h], edge_gap)
-    for a, (nx, ny, _, _) in enumerate(hulls[0][1]):  # the hulls' axes
+        low, high = _projection_range(normal_xs[v], normal_ys[v], corners)
+        edge_gap = jnp.where(valid[v], jnp.maximum(low - highs[v], lows[v] - high), -jnp.inf)
+        gap = edge_gap if gap is None else jnp.maximum(gap, edge_gap)
+    for nx, ny, low, high in axes:  # the hull's
         along = [nx * x + ny * y for x, y in zip(xs, ys)]
         lowest, highest = _valid_range(along, along, valid)
-        for h, (_, axes, _) in enumerate(hulls):
-            low, high = axes[a][2:]
-            gaps[h] = jnp.maximum(gaps[h], jnp.maximum(lowest - high, low - highest))
-    gap = functools.reduce(jnp.maximum, [gap - allowance
-                                         for gap, (_, _, allowance) in zip(gaps, hulls)])
+        gap = jnp.maximum(gap, jnp.maximum(lowest - high, low - highest))
     if patch is not None:  # every vertex on one side of the link's turning line
         sides = [patch.line_sides(x, y) for x, y in zip(xs, ys)]
         below, above = _valid_range([side[0] for side in sides], [side[1] for side in sides],
