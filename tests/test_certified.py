@@ -202,8 +202,8 @@ def test_paths_not_to_prove_stop_at_the_samples(rng):
 def test_paths_whose_freedom_alone_matters_stop_at_their_first_open_piece(rng):
     """``check(..., free_only=...)``: the same free paths, with the same certificates; a path
     that is not free is still not free, with a positive violation, after no more pieces.
-    Paths close around case 2's optimum, many grazing an obstacle between samples, with a
-    tolerance of 1 cm so that some end undecided."""
+    Paths close around case 2's optimum, with a tolerance of 1 cm so that some end
+    undecided."""
     problem = jaxarm.load_scenario("paper-case-2", certify_tol=1.0)
     optimum = np.array([66.7388, -28.1028, -9.8855], np.float32)
     x = (optimum + rng.normal(0.0, 0.5, (400, 3))).astype(np.float32)

@@ -59,7 +59,7 @@ def test_paths_left_unproved_change_no_update(case2):
     (``pso.Swarm.bar``). Stepped by hand under every rule, each update with those paths left
     unproved equals the update with every path proved, bit for bit, and paths were left."""
     # a tolerance of 1 cm: some paths end undecided, so some stop early (``Bar.free_only``;
-    # on these keys 5 of them, under the third-order bound's proofs)
+    # asserted below: on other keys the third-order bound proved them all)
     problem = case2.replace(collision="certified", certify_tol=1.0)
     measure = restarts.path_measurement(problem.spec, problem.arrays)
     measure_every = jax.jit(jax.vmap(lambda x: measure(x)))

@@ -317,8 +317,9 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     (``LinkMotion.jerk``), and that hull is tested on the first hull's axes
     (``hull_separation``'s ``bent``). It has the exact curvature at the centre where the
     second-order remainder has a bound on the acceleration anywhere on the link and the piece.
-    With polygons it cost more time than its fewer pieces saved (``benchmarks/RESULTS.md``,
-    *Decisions and negative results*, "A third-order bound in the bisection").
+    With polygons its dearer test ate what its fewer pieces saved: searches ran faster on some
+    scenes and slower on others (``benchmarks/RESULTS.md``, *Decisions and negative results*,
+    "A third-order bound in the bisection").
 
     Args:
       lengths, world: the problem's arrays.
@@ -370,15 +371,17 @@ def bent_corners(motion: LinkMotion, radius) -> list:
     q''``, and the link's points are convex combinations of its ends. Ordered as
     ``_Patch.corners`` (the two chords' ends), then the two apexes."""
     half = 0.5 * radius * radius
-    chords, apexes = [], []
-    for (x, y), (vx, vy), (ax, ay) in ((motion.near, motion.near_velocity,
-                                        motion.near_curvature),
-                                       (motion.far, motion.far_velocity, motion.far_curvature)):
-        ends = [(x - radius * vx + half * ax, y - radius * vy + half * ay),
-                (x + radius * vx + half * ax, y + radius * vy + half * ay)]
-        chords += ends if not chords else ends[::-1]
-        apexes.append((x - half * ax, y - half * ay))
-    return chords + apexes
+
+    def triangle(end, velocity, curvature):  # (chord start, chord end, apex)
+        (x, y), (vx, vy), (ax, ay) = end, velocity, curvature
+        return ((x - radius * vx + half * ax, y - radius * vy + half * ay),
+                (x + radius * vx + half * ax, y + radius * vy + half * ay),
+                (x - half * ax, y - half * ay))
+    near_start, near_end, near_apex = triangle(motion.near, motion.near_velocity,
+                                               motion.near_curvature)
+    far_start, far_end, far_apex = triangle(motion.far, motion.far_velocity,
+                                            motion.far_curvature)
+    return [near_start, near_end, far_end, far_start, near_apex, far_apex]
 
 
 _CORNER_PAIRS = tuple(itertools.combinations(range(4), 2))  # every hull edge is one of them
