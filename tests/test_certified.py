@@ -136,8 +136,9 @@ def test_small_certify_batches_share_one_program_and_agree_with_a_large_one(rng)
 def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch, scene):
     """The window pass over the paths without a witness at a sample, in chunks, and the
     bisection in either of its loops, give every path the same verdict as one chunk and the
-    narrow loop. Thin-wall's random paths run several window chunks; case 1's paths near the
-    paper's need the bisection, more of them than the second loop has lanes."""
+    narrow loop. Thin-wall (a polygon) runs the screened pass, its random paths several chunks
+    of its swing test and of its drift test; case 1 (circles) the dense pass, and its paths
+    near the paper's need the bisection, more of them than the second loop has lanes."""
     if scene == "thin-wall":
         problem = thin_wall_problem(rng)
         x = rng.uniform(-10, 10, (200, problem.n_free)).astype(np.float32)
@@ -153,6 +154,8 @@ def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch, 
     one_chunk_narrow["violation"] = jaxarm.violation(problem, x)
     lanes = 16
     monkeypatch.setattr(certified, "WINDOW_CHUNK", 16)
+    monkeypatch.setattr(certified, "SWING_CHUNK", 16)
+    monkeypatch.setattr(certified, "PAIR_CHUNK", 16)
     monkeypatch.setattr(certified, "LANES", lanes)  # the other loop, refilling its lanes
     monkeypatch.setattr(certified, "_few_paths", lambda: -1)  # always the other loop
     # compiled as ``certify`` is: the problem's arrays as arguments (as constants they were
@@ -172,9 +175,67 @@ def test_chosen_rows_come_first_in_order_as_a_stable_sort_puts_them(rng, size):
     """``_rows_first`` (a running count) against NumPy's stable argsort, on random masks and
     on all-chosen and none-chosen ones."""
     for chosen in (rng.random(size) < 0.3, np.ones(size, bool), np.zeros(size, bool)):
-        rows, count = jax.jit(certified._rows_first)(chosen)
+        rows, count, place = jax.jit(certified._rows_first, static_argnums=1)(chosen, True)
         np.testing.assert_array_equal(np.asarray(rows), np.argsort(~chosen, kind="stable"))
         assert int(count) == int(chosen.sum())
+        np.testing.assert_array_equal(np.asarray(place)[np.asarray(rows)], np.arange(size))
+
+
+def test_window_bits_pack_and_are_found_by_rank(rng):
+    """``_packed`` against NumPy's bit packing, and ``_nth_set_bit`` against the positions of
+    the set bits, on random words (empty and full ones among them)."""
+    bits = rng.random((50, 101)) < 0.3
+    bits[0], bits[1] = False, True
+    words = np.asarray(jax.jit(certified._packed)(bits))
+    padded = np.pad(bits, ((0, 0), (0, 27)))
+    expected = np.packbits(padded.reshape(50, 4, 32), axis=-1, bitorder="little")
+    np.testing.assert_array_equal(words, expected.view("<u4")[..., 0])
+    flat = words.reshape(-1)
+    word, rank = zip(*[(w, n) for w in range(len(flat)) for n in range(bin(flat[w]).count("1"))])
+    found = jax.jit(certified._nth_set_bit)(flat[list(word)], np.asarray(rank, np.int32))
+    positions = [np.nonzero((int(flat[w]) >> np.arange(32)) & 1)[0][n] for w, n in zip(word, rank)]
+    np.testing.assert_array_equal(np.asarray(found), positions)
+
+
+@pytest.mark.parametrize("scene", ["polygon-field", "narrow-gap"])
+def test_screened_windows_fail_where_every_window_tested_fails(rng, scene):
+    """The screened window pass (the swing screen, then the drift test on what it leaves)
+    finds the failing windows that the drift test of every window finds, and its worst
+    passed window is no better (the screen's bound is the looser). Paths near one another,
+    as a search's are, so that some windows pass the screen, some only the drift test and
+    some neither."""
+    problem = jaxarm.load_scenario(scene)
+    spec, arrays = problem.spec, problem.arrays
+    centre = rng.uniform(-20, 20, problem.n_free)
+    x = (centre + rng.normal(0.0, 3.0, (300, problem.n_free))).astype(np.float32)
+    motion = certified._Motion(arrays.lengths, arrays.world, arrays.start, arrays.goal, x)
+    margin = np.float32(0.0)
+
+    @jax.jit
+    def both(x):
+        clearances = certified._sample_clearances(
+            arrays.lengths, arrays.world, arrays.start, arrays.goal, x, spec.degree,
+            spec.n_samples)
+        open_ = clearances.min(axis=0) >= 0
+        moved = motion._replace(x=x)
+        swing = certified._window_swings(
+            arrays.lengths, arrays.start, arrays.goal, x,
+            certified._derivative_tables(spec.degree, spec.n_samples),
+            1.0 / (spec.n_samples - 1) / 2 * (1.0 + 2.0**-20))
+        screened_out = ((swing - clearances <= 0) & open_[None]).sum()
+        return (certified._screened_window_pass(moved, clearances, open_, spec.degree,
+                                                spec.n_samples, margin),
+                certified._dense_window_pass(moved, *certified._rows_first(open_),
+                                             spec.degree, spec.n_samples, margin),
+                open_, screened_out)
+
+    screened, dense, open_, screened_out = both(x)
+    failing = np.unpackbits(np.asarray(dense.failing).view(np.uint8), axis=1,
+                            bitorder="little").sum()
+    open_windows = int(open_.sum()) * spec.n_samples
+    assert 0 < failing and failing + int(screened_out) < open_windows  # all three kinds
+    np.testing.assert_array_equal(np.asarray(screened.failing), np.asarray(dense.failing))
+    assert np.all(np.asarray(screened.worst_passed) >= np.asarray(dense.worst_passed) - 1e-4)
 
 
 def test_paths_not_to_prove_stop_at_the_samples(rng):

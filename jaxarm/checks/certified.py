@@ -5,10 +5,11 @@ Three stages, all batched over paths.
 0. **Samples** (a fold along the samples, ``path.run_fold``): the nearest obstacle at every
    sample. A sample where a link penetrates an obstacle is a *witness*: the path collides, and
    nothing more is done for it. A search asks for proofs only of the paths that could change
-   it (``check``'s ``prove``, from ``pso.Swarm.bar``); the others stop here too.
+   it (``check``'s ``prove``, from ``pso.Swarm.bar``); the others stop here too. With
+   polygons in the world the clearance at every sample is kept for stage 1.
 
-1. **Windows**, for the paths without a witness only (compacted, ``WINDOW_CHUNK`` at a time;
-   most random paths have a witness). Around every sample r_s lies the
+1. **Windows**, for the paths without a witness only (most random paths have one). Around
+   every sample r_s lies the
    window ``|r - r_s| <= h / 2`` (h the sample spacing); the windows cover [0, 1]. A point p of
    link k is ``sum_{i<k} l_i u(phi_i) + t l_k u(phi_k)`` with ``phi_i = theta_1 + ... +
    theta_i``; its velocity is ``sum_{j<=k} theta_j'(r) J (p - q_{j-1})`` (q_{j-1} joint j-1's
@@ -22,8 +23,22 @@ Three stages, all batched over paths.
    points), and against a circle only the linear part's speed towards the circle counts (so a
    link sliding along it, the swarm's typical grazing path, loses little; against a polygon,
    the faster end's full speed). Either bound proves a link; a window's *shortfall* is the
-   largest excess over the links. This pass is cheap (``collision.drift_shortfalls``: no
-   separating axes of the swept hull) and records which windows fail as a bit mask.
+   largest excess over the links (``collision.drift_shortfalls``: no separating axes of the
+   swept hull). The failing windows are recorded as a bit mask. How the windows are tested
+   depends on the world (static):
+
+   - *circles alone* (``_dense_window_pass``): every window of the paths without a witness
+     gets the drift test, a fold along the samples over ``WINDOW_CHUNK`` paths at a time;
+   - *with polygons* (``_screened_window_pass``): a window is first screened with no
+     geometry at all: the smallest clearance of any link at its sample (kept by stage 0)
+     against the largest swing of any link (the last link's delta), which proves most of a
+     search's windows; only the others get the drift test, compacted across paths
+     ``PAIR_CHUNK`` windows at a time. The screen proves a window only where the drift test
+     would (c_k is at least the smallest clearance, delta_k at most the last link's), so the
+     failing windows are the same up to rounding. Against circles alone the drift test
+     costs so little per window that the screen and the compaction cost more than they saved
+     (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Windows screened by
+     their swing").
 
 2. **Bisection** of the failing windows of every path without a witness. Each piece is tested
    about its own centre with two bounds on every link's distance to the obstacles over the
@@ -115,7 +130,9 @@ MAX_LEVELS = 22  # halvings of a sample window; offsets stay exact integers in f
 LANES = 1024  # paths bisected at once ...
 FEW_LANES = 64  # ... or FEW_LANES at a time when at most ``_few_paths()`` need it:
 FEW_PATHS, FEW_PATHS_CPU = 2048, 4096  # on an accelerator, on CPU
-WINDOW_CHUNK = 1024  # paths per call of the window pass (``_compacted_window_pass``)
+WINDOW_CHUNK = 1024  # paths per call of the dense window pass (``_dense_window_pass``)
+SWING_CHUNK = 512  # paths per call of the screened pass's swing test (``_screened_window_pass``)
+PAIR_CHUNK = 4096  # ... and windows per call of its drift test
 # Pieces per path: the count shares an int32 with three flags, and a path can test a few more
 # than its budget (the first piece of each failing window left, and the pending siblings).
 MAX_BUDGET = 2**27
@@ -152,6 +169,13 @@ class _Work(NamedTuple):
     n_work: jax.Array  # shape=(), int32: how many rows need it
 
 
+class _Windows(NamedTuple):
+    """What the window stage found on the paths it passed, each field of shape (B, ...)."""
+
+    failing: jax.Array  # shape=(B, n_words), uint32: bit s % 32 of word s // 32 = window s
+    worst_passed: jax.Array  # shape=(B,), largest shortfall of a certified window (<= 0)
+
+
 class _WindowPass(NamedTuple):
     """Carry of the window stage along the samples."""
 
@@ -169,9 +193,9 @@ def _no_windows(batch: tuple, dtype, n_samples: int) -> _WindowPass:
     )
 
 
-def _window_pass(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
-    """Stage 1's drift pass as a fold over the samples; ``finish`` returns the last
-    ``_WindowPass``.
+def _drift_fold(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
+    """Stage 1's drift test of every window, as a fold over the samples; ``finish`` returns
+    the last ``_WindowPass``.
 
     The shortfalls alone: the nearest clearance at the samples comes from stage 0. With both,
     every link's distance had two consumers, and XLA's CPU backend materialised them (the
@@ -237,9 +261,10 @@ def _nearest_fold(lengths, world, x) -> path.SampleFold:
         step=add_sample, finish=lambda carry: carry, max_order=0)
 
 
-def _compacted_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples,
-                           margin) -> _WindowPass:
-    """Stage 1 on the paths ``open_rows[:n_open]`` only, ``WINDOW_CHUNK`` paths at a time.
+def _dense_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples,
+                       margin) -> _Windows:
+    """Stage 1 in a world of circles alone: the drift test of every window of the paths
+    ``open_rows[:n_open]``, ``WINDOW_CHUNK`` paths at a time.
 
     Each chunk is a scan over the samples; on CPU, polygon scenes pay for each scan step
     far more than for its paths, so chunks hold 1024 paths rather than 512 (faster on
@@ -252,8 +277,7 @@ def _compacted_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples
       n_open: int32 scalar.
 
     Returns:
-      ``_WindowPass`` of arrays of shape (B,): the pass's values on the open rows, no failing
-      window elsewhere.
+      ``_Windows``: the pass's values on the open rows, no failing window elsewhere.
     """
     x = motion.x
     n_rows = x.shape[0]
@@ -264,7 +288,7 @@ def _compacted_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples
         first, out = state
         rows = jax.lax.dynamic_slice(padded, (first,), (chunk,))
         xs = x[rows]
-        windows = path.run_fold(_window_pass(motion._replace(x=xs), degree, n_samples, margin),
+        windows = path.run_fold(_drift_fold(motion._replace(x=xs), degree, n_samples, margin),
                                 motion.start, motion.goal, xs, degree, n_samples)
         target = jnp.where(first + jnp.arange(chunk) < n_open, rows, n_rows)
         out = jax.tree.map(lambda o, v: o.at[target].set(v, mode="drop"), out, windows)
@@ -272,7 +296,123 @@ def _compacted_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples
 
     _, out = jax.lax.while_loop(lambda state: state[0] < n_open, pass_chunk,
                                 (jnp.int32(0), _no_windows((n_rows,), x.dtype, n_samples)))
-    return out
+    return _Windows(failing=out.failing, worst_passed=out.worst_passed)
+
+
+def _sample_clearances(lengths, world, start, goal, x, degree, n_samples):
+    """Stage 0: the smallest clearance bound of any link at each sample (cm; < 0: a
+    penetration, exact), shape (n_samples, B)."""
+    return path.sample_values(
+        lambda sample: functools.reduce(jnp.minimum, collision_lib.posture_clearance_bound(
+            lengths, world, sample.derivatives[0])),
+        start, goal, x, degree, n_samples)
+
+
+def _window_swings(lengths, start, goal, x, tables, reach):
+    """How far any point of the arm can move over each sample's window (cm), shape
+    (n_samples, B): the last link's swing (``collision.link_swings``), the largest of any
+    link's. No geometry: the joints' Taylor coefficients about the sample alone."""
+    def value(sample):
+        rows = tables[sample.index]
+        about_sample = [path.joint_angle_list(start, goal, x, rows[order], order)
+                        for order in range(tables.shape[1])]  # order 0 unused: compiled away
+        speed = [collision_lib.taylor_derivative_bound([order[j] for order in about_sample],
+                                                       reach)
+                 for j in range(start.shape[0])]
+        return collision_lib.link_swings(lengths, speed, reach)[-1]
+
+    return path.sample_values(value, start, goal, x, tables.shape[1] - 1, tables.shape[0])
+
+
+def _screened_window_pass(motion: _Motion, nearest, open_, degree, n_samples,
+                          margin) -> _Windows:
+    """Stage 1 in a world with polygons (module docstring) on the paths where ``open_`` (shape
+    (B,), bool), from stage 0's clearances ``nearest`` (shape (n_samples, B)).
+
+    A window is proved first by its sample's clearance against the arm's largest swing
+    (``_window_swings``: no geometry), on the open paths only, ``SWING_CHUNK`` at a time; only
+    the windows that fail that are tested with the drift bound, compacted across paths,
+    ``PAIR_CHUNK`` at a time.
+    """
+    lengths, world, start, goal, x = motion
+    n_rows = x.shape[0]
+    step = 1.0 / (n_samples - 1)
+    tables = jnp.asarray(_derivative_tables(degree, n_samples), x.dtype)
+    reach = jnp.asarray(step / 2 * (1.0 + 2.0**-20), x.dtype)  # widened as ``_test_pieces``'s
+    open_rows, n_open, place = _rows_first(open_, with_place=True)
+    n_words = -(-n_samples // 32)
+    rows_chunk = min(SWING_CHUNK, n_rows)
+    padded = jnp.concatenate([open_rows, jnp.zeros(-n_rows % rows_chunk, jnp.int32)])
+
+    def swing_chunk(state):  # open rows first..first + rows_chunk, in ``open_rows`` order
+        first, hard_words, worst = state
+        rows = jax.lax.dynamic_slice(padded, (first,), (rows_chunk,))
+        shortfall = (_window_swings(lengths, start, goal, x[rows], tables, reach)
+                     - (nearest[:, rows] - margin))
+        hard = ~(shortfall <= 0) & (first + jnp.arange(rows_chunk) < n_open)[None]  # NaN too
+        passed = jnp.where(hard, -jnp.inf, shortfall).max(axis=0)
+        return (first + rows_chunk,
+                jax.lax.dynamic_update_slice(hard_words, _packed(hard.T), (first, 0)),
+                jax.lax.dynamic_update_slice(worst, passed, (first,)))
+
+    _, hard_words, worst = jax.lax.while_loop(
+        lambda state: state[0] < n_open, swing_chunk,
+        (jnp.int32(0), jnp.zeros((padded.shape[0], n_words), jnp.uint32),
+         jnp.full(padded.shape, -jnp.inf, x.dtype)))
+    hard_words = hard_words.reshape(-1)  # open rows' words, in ``open_rows`` order
+    counts = jax.lax.population_count(hard_words).astype(jnp.int32)
+    through = jnp.cumsum(counts)  # hard windows in the words up to each one
+    n_hard = through[-1]
+    chunk = min(PAIR_CHUNK, 32 * hard_words.shape[0])
+
+    def pass_chunk(state):
+        first, failing, worst = state
+        rank = first + jnp.arange(chunk, dtype=jnp.int32)
+        word = jnp.minimum(jnp.searchsorted(through, rank, side="right"), through.shape[0] - 1)
+        bit = _nth_set_bit(hard_words[word], rank - (through[word] - counts[word]))
+        sample = jnp.minimum((word % n_words) * 32 + bit, n_samples - 1)
+        xs, rows = x[padded[word // n_words]], tables[sample]
+        about_sample = [path.joint_angle_list(start, goal, xs, rows[:, order], order,
+                                              per_path=True)
+                        for order in range(degree + 1)]
+        drift = functools.reduce(jnp.maximum, collision_lib.drift_shortfalls(
+            lengths, world, about_sample, reach, margin))
+        valid = rank < n_hard
+        fails = ~(drift <= 0)
+        failing = failing.at[jnp.where(valid & fails, word, failing.shape[0])].add(
+            jnp.left_shift(jnp.uint32(1), bit.astype(jnp.uint32)), mode="drop")
+        worst = worst.at[jnp.where(valid & ~fails, word // n_words, worst.shape[0])].max(
+            drift, mode="drop")
+        return first + chunk, failing, worst
+
+    _, failing, worst = jax.lax.while_loop(
+        lambda state: state[0] < n_hard, pass_chunk,
+        (jnp.int32(0), jnp.zeros_like(hard_words), worst))
+    failing = failing.reshape(-1, n_words)
+    return _Windows(failing=jnp.where(open_[:, None], failing[place], jnp.uint32(0)),
+                    worst_passed=jnp.where(open_, worst[place], -jnp.inf))
+
+
+def _packed(bits):
+    """Bits (shape (B, n), bool) as words: bit i % 32 of word i // 32, shape (B, ceil(n / 32)),
+    uint32."""
+    n_words = -(-bits.shape[1] // 32)
+    padded = jnp.pad(bits, ((0, 0), (0, 32 * n_words - bits.shape[1])))
+    as_words = padded.reshape(bits.shape[0], n_words, 32).astype(jnp.uint32)
+    return (as_words << jnp.arange(32, dtype=jnp.uint32)[None, None]).sum(axis=-1, dtype=jnp.uint32)
+
+
+def _nth_set_bit(words, n):
+    """Index of the set bit of rank ``n`` (0: the lowest) of each of ``words`` (uint32, shape
+    (m,); ``n`` int32, shape (m,), below each word's count), by halving: shape (m,), int32."""
+    index = jnp.zeros_like(n)
+    for width in (16, 8, 4, 2, 1):
+        below = jax.lax.population_count(words & jnp.uint32((1 << width) - 1)).astype(n.dtype)
+        above = n >= below
+        n = jnp.where(above, n - below, n)
+        words = jnp.where(above, words >> width, words)
+        index = index + jnp.where(above, width, 0)
+    return index
 
 
 def _derivative_tables(degree: int, n_samples: int) -> np.ndarray:
@@ -570,17 +710,18 @@ def _bisect(motion: _Motion, work: _Work, tables, step, tol, margin, proof_margi
     return out
 
 
-def _rows_first(chosen):
+def _rows_first(chosen, with_place: bool = False):
     """The rows where ``chosen`` (shape (B,), bool) is true, in order, then the others in
     order (int32, shape (B,)), and how many are chosen: ``argsort(~chosen, stable=True)`` by a
     running count: on CPU the sort was a sizeable part of a certified search
     (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Rows first by a running
-    count, not a sort")."""
+    count, not a sort"). ``with_place``: also each row's place in that order (the inverse)."""
     row = jnp.arange(chosen.shape[0], dtype=jnp.int32)
     running = jnp.cumsum(chosen, dtype=jnp.int32)
     before, count = running - chosen, running[-1]  # chosen rows before this one; all chosen
     place = jnp.where(chosen, before, count + row - before)
-    return jnp.zeros_like(row).at[place].set(row, unique_indices=True), count
+    order = jnp.zeros_like(row).at[place].set(row, unique_indices=True)
+    return (order, count, place) if with_place else (order, count)
 
 
 def search_spare(lengths):
@@ -626,13 +767,23 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None, free_only=Non
     tol = jnp.asarray(arrays.certify_tol, dtype)
     margin = jnp.asarray(arrays.margin, dtype)
     proof_margin = margin + jnp.asarray(spare, dtype)  # what the proofs keep
-    nearest, closest = path.run_fold(_nearest_fold(lengths, world, x), start, goal, x, degree,
-                                     n_samples)
+    circles_only = world.vertices.shape[0] == 0  # static: which window pass (module docstring)
+    if circles_only:
+        nearest, closest = path.run_fold(_nearest_fold(lengths, world, x), start, goal, x,
+                                         degree, n_samples)
+    else:
+        clearances = _sample_clearances(lengths, world, start, goal, x, degree, n_samples)
+        nearest = clearances.min(axis=0)
+        closest = jnp.argmin(clearances, axis=0).astype(jnp.int32)
     sample_witness = ~(nearest >= 0)
     unproved = ~sample_witness & (False if prove is None else ~prove)
     open_ = ~sample_witness & ~unproved
-    windows = _compacted_window_pass(motion, *_rows_first(open_), degree, n_samples,
+    if circles_only:
+        windows = _dense_window_pass(motion, *_rows_first(open_), degree, n_samples,
                                      proof_margin)
+    else:
+        windows = _screened_window_pass(motion, clearances, open_, degree, n_samples,
+                                        proof_margin)
     needs_work = open_ & (windows.failing != 0).any(axis=1)
 
     work_rows, n_work = _rows_first(needs_work)
