@@ -197,17 +197,21 @@ def test_window_bits_pack_and_are_found_by_rank(rng):
     np.testing.assert_array_equal(np.asarray(found), positions)
 
 
-@pytest.mark.parametrize("scene", ["polygon-field", "narrow-gap"])
+# The best path of a sampled search (preset A, 4 restarts, seed 0) in each scene.
+NEAR_A_SOLUTION = {"polygon-field": [2.06, -27.84, -0.83], "narrow-gap": [35.45, -75.66, -9.94]}
+
+
+@pytest.mark.parametrize("scene", sorted(NEAR_A_SOLUTION))
 def test_screened_windows_fail_where_every_window_tested_fails(rng, scene):
     """The screened window pass (the swing screen, then the drift test on what it leaves)
     finds the failing windows that the drift test of every window finds, and its worst
-    passed window is no better (the screen's bound is the looser). Paths near one another,
+    passed window is no better (the screen's bound is the looser). Paths about a solution,
     as a search's are, so that some windows pass the screen, some only the drift test and
     some neither."""
     problem = jaxarm.load_scenario(scene)
     spec, arrays = problem.spec, problem.arrays
-    centre = rng.uniform(-20, 20, problem.n_free)
-    x = (centre + rng.normal(0.0, 3.0, (300, problem.n_free))).astype(np.float32)
+    centre = np.asarray(NEAR_A_SOLUTION[scene])
+    x = jax.numpy.asarray(centre + rng.normal(0.0, 1.0, (300, problem.n_free)), np.float32)
     motion = certified._Motion(arrays.lengths, arrays.world, arrays.start, arrays.goal, x)
     margin = np.float32(0.0)
 
@@ -220,8 +224,9 @@ def test_screened_windows_fail_where_every_window_tested_fails(rng, scene):
         moved = motion._replace(x=x)
         swing = certified._window_swings(
             arrays.lengths, arrays.start, arrays.goal, x,
-            certified._derivative_tables(spec.degree, spec.n_samples),
-            1.0 / (spec.n_samples - 1) / 2 * (1.0 + 2.0**-20))
+            jax.numpy.asarray(certified._derivative_tables(spec.degree, spec.n_samples),
+                              np.float32),
+            np.float32(1.0 / (spec.n_samples - 1) / 2 * (1.0 + 2.0**-20)))
         screened_out = ((swing - clearances <= 0) & open_[None]).sum()
         return (certified._screened_window_pass(moved, clearances, open_, spec.degree,
                                                 spec.n_samples, margin),

@@ -110,14 +110,14 @@ def test_sample_values_are_the_value_at_every_sample():
     """``sample_values`` (each value written one step late) against the joint angles and speeds
     evaluated at all samples at once, for a batch of paths."""
     rng = np.random.default_rng(0)
-    start, goal = np.array([0.3, -0.2]), np.array([1.1, 0.4])
-    x = rng.normal(0.0, 1.0, (5, 2 * path.n_free_per_joint(7)))
+    start, goal = np.float32([0.3, -0.2]), np.float32([1.1, 0.4])
+    x = rng.normal(0.0, 1.0, (5, 2 * path.n_free_per_joint(7))).astype(np.float32)
     values = path.sample_values(lambda sample: (sample.derivatives[0][1],
                                                 sample.derivatives[1][0] * sample.weight),
                                 start, goal, x, 7, 11, max_order=1)
     r = np.linspace(0.0, 1.0, 11)
-    angles = path.joint_angles(start, goal, x, path.basis_values(7, r, 0))  # (5, 11, 2)
-    speeds = path.joint_angles(start, goal, x, path.basis_values(7, r, 1), 1)
+    angles = np.asarray(path.joint_angles(start, goal, x, path.basis_values(7, r, 0)))  # (5, 11, 2)
+    speeds = np.asarray(path.joint_angles(start, goal, x, path.basis_values(7, r, 1), 1))
     np.testing.assert_allclose(values[0], angles[..., 1].T, rtol=1e-6)
     np.testing.assert_allclose(values[1], (speeds[..., 0] * path.simpson_weights(11)).T,
                                rtol=1e-6)

@@ -251,7 +251,8 @@ def run_fold(fold: SampleFold, start, goal, x, degree: int, n_samples: int):
 def sample_values(value: Callable, start, goal, x, degree: int, n_samples: int,
                   max_order: int = 0):
     """``value(sample)`` (a ``Sample`` with derivatives up to ``max_order``, each of shape
-    ``x.shape[:-1]``) at every sample, as one ``lax.scan``: shape (n_samples,) + the value's.
+    ``x.shape[:-1]``; an array or a pytree of them) at every sample, as one ``lax.scan``:
+    each array with a leading axis of n_samples.
 
     Each value is written into the result one step late: written in the step that computes
     it, XLA's CPU backend fused the computation into the write, and stage 0 of the certified
@@ -260,19 +261,23 @@ def sample_values(value: Callable, start, goal, x, degree: int, n_samples: int,
     probe = Sample(jnp.int32(0), jnp.zeros((), x.dtype),
                    tuple((jnp.zeros(x.shape[:-1], x.dtype),) * start.shape[-1]
                          for _ in range(max_order + 1)))
-    shape = jax.eval_shape(value, probe)
+    shapes = jax.eval_shape(value, probe)
+
+    def write(values, row, new):
+        return jax.tree.map(lambda v, n: jax.lax.dynamic_update_index_in_dim(v, n, row, 0),
+                            values, new)
 
     def step(carry, sample):
         previous, values = carry
         row = jnp.maximum(sample.index - 1, 0)  # sample 0's row is written again at sample 1
-        return value(sample), jax.lax.dynamic_update_index_in_dim(values, previous, row, 0)
+        return value(sample), write(values, row, previous)
 
     def finish(carry):
         last, values = carry
-        return jax.lax.dynamic_update_index_in_dim(values, last, n_samples - 1, 0)
+        return write(values, n_samples - 1, last)
 
-    init = (jnp.zeros(shape.shape, shape.dtype),
-            jnp.zeros((n_samples,) + shape.shape, shape.dtype))
+    init = (jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), shapes),
+            jax.tree.map(lambda s: jnp.zeros((n_samples,) + s.shape, s.dtype), shapes))
     return run_fold(SampleFold(init=init, step=step, finish=finish, max_order=max_order),
                     start, goal, x, degree, n_samples)
 
