@@ -177,7 +177,7 @@ class _Windows(NamedTuple):
 
 
 class _WindowPass(NamedTuple):
-    """Carry of the window stage along the samples."""
+    """Carry of the dense window pass along the samples."""
 
     pending: jax.Array  # shape=(B,), the previous sample's window shortfall, not yet recorded
     worst_passed: jax.Array  # shape=(B,), largest shortfall of a certified window (<= 0)
@@ -185,7 +185,7 @@ class _WindowPass(NamedTuple):
 
 
 def _no_windows(batch: tuple, dtype, n_samples: int) -> _WindowPass:
-    """The window pass before any sample: nothing failing."""
+    """The dense window pass before any sample: nothing failing."""
     return _WindowPass(
         pending=jnp.full(batch, -jnp.inf, dtype),
         worst_passed=jnp.full(batch, -jnp.inf, dtype),
@@ -266,10 +266,10 @@ def _dense_window_pass(motion: _Motion, open_rows, n_open, degree, n_samples,
     """Stage 1 in a world of circles alone: the drift test of every window of the paths
     ``open_rows[:n_open]``, ``WINDOW_CHUNK`` paths at a time.
 
-    Each chunk is a scan over the samples; on CPU, polygon scenes pay for each scan step
-    far more than for its paths, so chunks hold 1024 paths rather than 512 (faster on
-    polygon-field, slower on death-trap: ``benchmarks/RESULTS.md``, *Decisions and negative
-    results*, "The window pass computes the shortfall alone"; unmeasured on a GPU).
+    Each chunk is a scan over the samples, of 1024 paths: chosen when polygon scenes ran this
+    pass too, whose scan steps cost far more than their paths on CPU (``benchmarks/RESULTS.md``,
+    *Decisions and negative results*, "The window pass computes the shortfall alone"; not
+    measured again for circles alone, nor on a GPU).
 
     Args:
       motion: all paths, x of shape (B, n_free).
