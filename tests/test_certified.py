@@ -224,9 +224,7 @@ def test_screened_windows_fail_where_every_window_tested_fails(rng, scene):
         moved = motion._replace(x=x)
         swing = certified._window_swings(
             arrays.lengths, arrays.start, arrays.goal, x,
-            jax.numpy.asarray(certified._derivative_tables(spec.degree, spec.n_samples),
-                              np.float32),
-            np.float32(1.0 / (spec.n_samples - 1) / 2 * (1.0 + 2.0**-20)))
+            *certified._window_tables(spec.degree, spec.n_samples, x.dtype))
         screened_out = ((swing - clearances <= 0) & open_[None]).sum()
         return (certified._screened_window_pass(moved, clearances, open_, spec.degree,
                                                 spec.n_samples, margin),

@@ -203,9 +203,7 @@ def _drift_fold(motion: _Motion, degree, n_samples, margin) -> path.SampleFold:
     results*, "The window pass computes the shortfall alone").
     """
     lengths, world, start, goal, x = motion
-    step = 1.0 / (n_samples - 1)
-    tables = jnp.asarray(_derivative_tables(degree, n_samples), x.dtype)
-    reach = jnp.asarray(step / 2 * (1.0 + 2.0**-20), x.dtype)  # widened as ``_test_pieces``'s
+    tables, reach = _window_tables(degree, n_samples, x.dtype)
 
     def record(carry: _WindowPass, index) -> _WindowPass:
         failing = ~(carry.pending <= 0)  # NaN (from non-finite angles) fails too
@@ -336,9 +334,7 @@ def _screened_window_pass(motion: _Motion, nearest, open_, degree, n_samples,
     """
     lengths, world, start, goal, x = motion
     n_rows = x.shape[0]
-    step = 1.0 / (n_samples - 1)
-    tables = jnp.asarray(_derivative_tables(degree, n_samples), x.dtype)
-    reach = jnp.asarray(step / 2 * (1.0 + 2.0**-20), x.dtype)  # widened as ``_test_pieces``'s
+    tables, reach = _window_tables(degree, n_samples, x.dtype)
     open_rows, n_open, place = _rows_first(open_, with_place=True)
     n_words = -(-n_samples // 32)
     rows_chunk = min(SWING_CHUNK, n_rows)
@@ -413,6 +409,14 @@ def _nth_set_bit(words, n):
         words = jnp.where(above, words >> width, words)
         index = index + jnp.where(above, width, 0)
     return index
+
+
+def _window_tables(degree: int, n_samples: int, dtype):
+    """What both window passes expand the paths with: ``_derivative_tables`` in ``dtype``, and
+    a window's radius, half the sample spacing widened as ``_test_pieces``'s radius."""
+    reach = 1.0 / (n_samples - 1) / 2 * (1.0 + 2.0**-20)
+    return (jnp.asarray(_derivative_tables(degree, n_samples), dtype),
+            jnp.asarray(reach, dtype))
 
 
 def _derivative_tables(degree: int, n_samples: int) -> np.ndarray:
