@@ -57,3 +57,27 @@ def test_programs_made_counts_new_top_level_programs_only():
     again = jit_lib.jit(_cube)
     assert float(again(2.0)) == 8.0 and again.programs_made() == 1  # a count of its own
     assert cube.programs_made() == 2
+
+
+def _power(v, exponent):
+    return v ** exponent
+
+
+def test_a_program_may_choose_xla_default_level_by_its_static_arguments():
+    power = jit_lib.jit(_power, static_argnames="exponent",
+                        default_level_when=lambda exponent: exponent > 2)
+    fast = _compiler_options_carried_by(power.lower(2.0, exponent=3))
+    usual = _compiler_options_carried_by(power.lower(2.0, exponent=2))
+    assert fast == {}
+    assert usual == ({"xla_backend_optimization_level": 1} if jax.default_backend() == "cpu"
+                     else {})
+    assert float(power(2.0, exponent=3)) == 8.0 and float(power(2.0, exponent=2)) == 4.0
+    assert power.programs_made() == 2
+    assert float(jax.jit(lambda v: power(v, exponent=3))(2.0)) == 8.0  # inside a caller's trace
+
+
+def test_the_certified_search_compiles_at_xla_default_level_where_it_screens_windows():
+    from jaxarm.optim.restarts import _screens_windows
+    assert _screens_windows(jaxarm.load_scenario("polygon-field").spec)
+    assert not _screens_windows(jaxarm.load_scenario("polygon-field", collision="sampled").spec)
+    assert not _screens_windows(jaxarm.load_scenario("paper-case-1").spec)  # circles alone

@@ -5,8 +5,10 @@ refine. On CPU jaxarm compiles them with ``CPU_COMPILER_OPTIONS``: LLVM's optimi
 instead of XLA's default 2: programs compile faster and run as fast, PSO results are
 bit-identical, and the evosax CMA-ES restarts differ in their last bits
 (``benchmarks/RESULTS.md``, *Decisions and negative results*, "One copy of the check per
-program, and LLVM optimisation level 1"). Other backends keep XLA's defaults (untested
-there).
+program, and LLVM optimisation level 1"). A program whose run outweighs its compilation can
+ask for XLA's default level by its static arguments (``default_level_when``): the certified
+search in worlds with polygons ran faster there, with the same results. Other backends keep
+XLA's defaults (untested there).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from jaxarm._compile import stored_programs
 CPU_COMPILER_OPTIONS = {"xla_backend_optimization_level": 1}
 
 
-def jit(fun=None, *, storable: bool = False, **options):
+def jit(fun=None, *, storable: bool = False, default_level_when=None, **options):
     """``jax.jit(fun, **options)``, compiled with ``CPU_COMPILER_OPTIONS`` when JAX runs on CPU.
 
     The backend is read at the first call (so after ``jax.distributed.initialize()``, which must
@@ -33,10 +35,17 @@ def jit(fun=None, *, storable: bool = False, **options):
     ``storable=True`` lets ``jaxarm._compile.stored_programs`` keep the traced program on disk: only for a
     module-level function whose trace depends on nothing but its arguments and jaxarm's source
     as written (not a closure over values made at run time).
+
+    ``default_level_when(**statics) -> bool``, given the static arguments by name, says which
+    calls compile at XLA's default optimisation level instead (on CPU; elsewhere nothing
+    changes): programs whose run costs far more than their compilation. ``lower`` and
+    ``trace`` choose by their arguments as calls do; other attributes of the ``jax.jit`` are
+    those of its ``CPU_COMPILER_OPTIONS`` program.
     """
     if fun is None:
-        return functools.partial(jit, storable=storable, **options)
-    return _Program(fun, options, storable)
+        return functools.partial(jit, storable=storable, default_level_when=default_level_when,
+                                 **options)
+    return _Program(fun, options, storable, default_level_when)
 
 
 try:  # JAX's own test for "outside any trace" (private: JAX exports none)
@@ -88,8 +97,10 @@ class _Program:
     Safe to call from several threads: a program is made once (and ``jax.jit`` compiled a
     program once when two threads called it together, checked by hand)."""
 
-    def __init__(self, fun, options: dict, storable: bool = False):
-        self._fun, self._options, self._jitted, self._storable = fun, options, None, storable
+    def __init__(self, fun, options: dict, storable: bool = False, default_level_when=None):
+        self._fun, self._options, self._storable = fun, options, storable
+        self._default_level_when = default_level_when
+        self._jitted = {}  # at the default level (bool) -> jax.jit
         self._nested = jax.jit(fun, **options)
         self._stored = {}  # Call.memo_key() -> stored_programs.Stored, or None where export refused it
         self._lock = threading.Lock()  # held while _jitted or a stored program is made
@@ -97,15 +108,39 @@ class _Program:
         self._counted = self._traces.counting(fun)  # what the top-level jax.jit traces
         functools.update_wrapper(self, fun)
 
-    def _compiler_options(self):
-        return CPU_COMPILER_OPTIONS if jax.default_backend() == "cpu" else None
+    def _at_default_level(self, statics: dict | None) -> bool:
+        """Whether a call with these static arguments (None: unknown) compiles at XLA's default
+        level."""
+        return (jax.default_backend() != "cpu"
+                or (statics is not None and self._default_level_when is not None
+                    and bool(self._default_level_when(**statics))))
 
-    def _compiled(self):
+    def _compiler_options(self, statics: dict | None):
+        return None if self._at_default_level(statics) else CPU_COMPILER_OPTIONS
+
+    def _compiled(self, statics: dict | None = None):
+        """The top-level ``jax.jit`` for calls with these static arguments."""
+        at_default = self._at_default_level(statics)
         with self._lock:
-            if self._jitted is None:
-                self._jitted = jax.jit(self._counted, compiler_options=self._compiler_options(),
-                                       **self._options)
-            return self._jitted
+            if at_default not in self._jitted:
+                self._jitted[at_default] = jax.jit(
+                    self._counted, compiler_options=self._compiler_options(statics),
+                    **self._options)
+            return self._jitted[at_default]
+
+    def _statics(self, args, kwargs) -> dict | None:
+        """The static arguments of a call, by name (None when nothing chooses by them)."""
+        if self._default_level_when is None:
+            return None
+        bound = stored_programs.signature(self._fun).bind(*args, **kwargs)
+        return {name: value for name, value in bound.arguments.items()
+                if name in self._static_names}
+
+    def lower(self, *args, **kwargs):
+        return self._compiled(self._statics(args, kwargs)).lower(*args, **kwargs)
+
+    def trace(self, *args, **kwargs):
+        return self._compiled(self._statics(args, kwargs)).trace(*args, **kwargs)
 
     @functools.cached_property
     def _static_names(self) -> frozenset:
@@ -121,11 +156,8 @@ class _Program:
             return self._nested(*args, **kwargs)
         call = (stored_programs.split_call(self._fun, self._static_names, args, kwargs)
                 if self._storable and stored_programs.usable() else None)
-        if call is None:
-            return self._compiled()(*args, **kwargs)
-        stored = self._stored_program(call)
-        if stored is None:  # jax.export refused it
-            return self._compiled()(*args, **kwargs)
+        if call is None or (stored := self._stored_program(call)) is None:  # export refused it
+            return self._compiled(self._statics(args, kwargs))(*args, **kwargs)
         return jax.tree.unflatten(stored.out_tree, stored.call(*call.leaves))
 
     def _stored_program(self, call: stored_programs.Call) -> stored_programs.Stored | None:
@@ -135,8 +167,8 @@ class _Program:
         with self._lock:
             if key not in self._stored:
                 label = f"{self._fun.__module__}.{self._fun.__qualname__} {self._options!r}"
-                self._stored[key] = stored_programs.stored_program(self._fun, label, call,
-                                                          self._compiler_options())
+                self._stored[key] = stored_programs.stored_program(
+                    self._fun, label, call, self._compiler_options(dict(call.statics)))
             return self._stored[key]
 
     def programs_made(self) -> int:
@@ -162,6 +194,7 @@ class _Program:
 
     def __getattr__(self, name: str):  # trace, lower, ...
         if name.startswith("__") or name in ("_fun", "_options", "_jitted", "_nested", "_stored",
-                                                   "_storable", "_lock", "_traces", "_counted"):
+                                             "_storable", "_lock", "_traces", "_counted",
+                                             "_default_level_when"):
             raise AttributeError(name)
         return getattr(self._compiled(), name)

@@ -182,8 +182,18 @@ def path_measurement(spec: ProblemSpec, arrays: ProblemArrays):
     return measure
 
 
+def _screens_windows(spec: ProblemSpec, **_) -> bool:
+    """Whether a search's check is the certified one in a world with polygons, whose screened
+    window pass (``jaxarm.checks.certified``) runs faster at XLA's default optimisation level,
+    with the same results (``benchmarks/RESULTS.md``, "The certified search at XLA's default
+    optimisation level"): ``compiled_search`` compiles those programs there."""
+    _, polygon_slots, _ = spec.capacities
+    return spec.collision == "certified" and polygon_slots > 0
+
+
 compiled_search = jit(
-    search_restarts, static_argnames=("spec", "rules", "n_particles", "n_iters"), storable=True
+    search_restarts, static_argnames=("spec", "rules", "n_particles", "n_iters"), storable=True,
+    default_level_when=_screens_windows,
 )
 
 
