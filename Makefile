@@ -33,6 +33,12 @@ $(BIN)/activate:
 $(BIN)/uv: | $(BIN)/activate
 	$(call uv_into,$(VENV))
 
+# The demo needs jaxarm's own dependencies only; the tests add theirs (the user guide's build
+# among them).
+$(VENV)/.installed: pyproject.toml | $(BIN)/uv
+	$(call install,$(VENV),-e .)
+	touch $@
+
 $(VENV)/.installed-test: pyproject.toml | $(BIN)/uv
 	$(call install,$(VENV),-e '$(TEST_EXTRAS)')
 	touch $@
@@ -41,7 +47,7 @@ $(VENV)/.installed-notebooks: $(VENV)/.installed-test
 	$(call install,$(VENV),-e '$(NOTEBOOK_EXTRAS)')
 	touch $@
 
-demo: $(VENV)/.installed-test
+demo: $(VENV)/.installed
 	$(BIN)/jaxarm reproduce-paper --quick --out results
 	@echo "Report: results/report.md"
 
