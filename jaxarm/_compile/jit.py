@@ -192,7 +192,7 @@ class _Program:
             stored = sum(s is not None for s in self._stored.values())
         return self._traces.count + stored
 
-    def __getattr__(self, name: str):  # trace, lower, ...
+    def __getattr__(self, name: str):  # eval_shape, clear_cache, ...
         if name.startswith("__") or name in ("_fun", "_options", "_jitted", "_nested", "_stored",
                                              "_storable", "_lock", "_traces", "_counted",
                                              "_default_level_when"):
