@@ -13,6 +13,7 @@ import jax
 import numpy as np
 import optax
 import pytest
+from test_programs import _compiler_options_carried_by
 
 import jaxarm
 from jaxarm._compile import stored_programs
@@ -199,9 +200,9 @@ def test_stored_programs_keep_the_level_their_static_arguments_choose(monkeypatc
     v = np.arange(3.0, dtype=np.float32)
     np.testing.assert_array_equal(scaled(v, factor=3), 3 * v)
     np.testing.assert_array_equal(scaled(v, factor=2), 2 * v)
-    assert len(list(tmp_path.iterdir())) == 2  # one stored program per level
+    assert len(list(tmp_path.iterdir())) == 2  # one stored program per factor
     on_cpu = jax.default_backend() == "cpu"
     for (statics, _, _), stored in scaled._stored.items():
-        options = dict(stored.call.lower(v)._lowering._compiler_options_kvs or ())
+        options = _compiler_options_carried_by(stored.call.lower(v))
         at_default = dict(statics)["factor"] > 2 or not on_cpu
         assert options == ({} if at_default else {"xla_backend_optimization_level": 1})
