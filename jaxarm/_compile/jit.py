@@ -124,7 +124,7 @@ class _Program:
         with self._lock:
             if at_default not in self._jitted:
                 self._jitted[at_default] = jax.jit(
-                    self._counted, compiler_options=self._compiler_options(statics),
+                    self._counted, compiler_options=None if at_default else CPU_COMPILER_OPTIONS,
                     **self._options)
             return self._jitted[at_default]
 

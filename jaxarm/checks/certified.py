@@ -742,12 +742,21 @@ def search_spare(lengths):
     return 2.0**-20 * jnp.sum(lengths)
 
 
+def screens_windows(spec: ProblemSpec) -> bool:
+    """Whether ``check`` screens the windows (a world with polygon slots:
+    ``_screened_window_pass``) rather than drift-testing every one (circles alone:
+    ``_dense_window_pass``); static, from the spec's capacities."""
+    _, polygon_slots, _ = spec.capacities
+    return polygon_slots > 0
+
+
 def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None, free_only=None,
           spare=0.0) -> CertifiedCheck:
     """The certified check of paths (module docstring).
 
     Args:
-      spec: the problem's static part (degree, n_samples, certify_budget are read).
+      spec: the problem's static part (degree, n_samples, certify_budget and capacities are
+        read).
       arrays: the problem's data (certify_tol and margin, cm, may be traced).
       x: free parameters, shape (B, n_free).
       prove: optional, shape (B,), bool: the paths to prove. The others get stage 0 only:
@@ -771,7 +780,7 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None, free_only=Non
     tol = jnp.asarray(arrays.certify_tol, dtype)
     margin = jnp.asarray(arrays.margin, dtype)
     proof_margin = margin + jnp.asarray(spare, dtype)  # what the proofs keep
-    circles_only = world.vertices.shape[0] == 0  # static: which window pass (module docstring)
+    circles_only = not screens_windows(spec)  # which window pass (module docstring)
     if circles_only:
         nearest, closest = path.run_fold(_nearest_fold(lengths, world, x), start, goal, x,
                                          degree, n_samples)

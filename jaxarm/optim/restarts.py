@@ -22,6 +22,7 @@ import numpy as np
 
 from jaxarm._compile.jit import jit
 from jaxarm._compile.padding import round_up
+from jaxarm.checks import certified
 from jaxarm.checks.evaluate import vmapped_evaluate
 from jaxarm.model.problem import Problem, ProblemArrays, ProblemSpec
 from jaxarm.optim import constraints, evosax_adapter, pso
@@ -183,12 +184,11 @@ def path_measurement(spec: ProblemSpec, arrays: ProblemArrays):
 
 
 def _screens_windows(spec: ProblemSpec, **_) -> bool:
-    """Whether a search's check is the certified one in a world with polygons, whose screened
-    window pass (``jaxarm.checks.certified``) runs faster at XLA's default optimisation level,
-    with the same results (``benchmarks/RESULTS.md``, "The certified search at XLA's default
-    optimisation level"): ``compiled_search`` compiles those programs there."""
-    _, polygon_slots, _ = spec.capacities
-    return spec.collision == "certified" and polygon_slots > 0
+    """Whether a search's check is the certified one screening its windows
+    (``certified.screens_windows``: a world with polygons), which runs faster at XLA's default
+    optimisation level, with the same results (``benchmarks/RESULTS.md``, "The certified search
+    at XLA's default optimisation level"): ``compiled_search`` compiles those programs there."""
+    return spec.collision == "certified" and certified.screens_windows(spec)
 
 
 compiled_search = jit(
