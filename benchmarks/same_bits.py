@@ -71,7 +71,8 @@ def fingerprints(scenes=SCENES) -> dict[str, np.ndarray]:
             t = np.linspace(0.0, 2.0, 41)
             for field, value in trajectory.at(t)._asdict().items():
                 out[f"{name}/trajectory/{field}"] = np.asarray(value)
-            out[f"{name}/trajectory/torques"] = np.asarray(trajectory.torques(t))
+            if problem.arm.masses is not None:
+                out[f"{name}/trajectory/torques"] = np.asarray(trajectory.torques(t))
             out[f"{name}/min_duration"] = np.asarray(jaxarm.min_duration(
                 problem, result.best_x, max_velocity=1.0, max_acceleration=2.0))
         print(f"{name}: {len(out)} arrays so far", file=sys.stderr, flush=True)
