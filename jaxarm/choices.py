@@ -24,7 +24,7 @@ MAX_DEGREE = 24
 LIMIT_UNITS = {"velocity": "rad/s", "acceleration": "rad/s^2", "jerk": "rad/s^3",
                "torque": "N m"}
 PRESET_NAMES = ("A", "B", "C")  # the paper's Table 2
-# "A-ring": preset A with the ring topology; "A-global-ring": with "global-ring" (``pso.resolve``)
+# "A-ring": preset A with the ring topology; "A-global-ring": with "global-ring" (``jaxarm.optim.methods``)
 TOPOLOGY_SUFFIXES = {"-ring": "ring", "-global-ring": "global-ring"}
 PSO_METHODS = PRESET_NAMES + tuple(name + suffix for suffix in TOPOLOGY_SUFFIXES
                                    for name in PRESET_NAMES)
@@ -49,7 +49,7 @@ MAX_SAMPLES = 100_001  # points of r: 1000 times the paper's 101
 
 def split_methods(text: str) -> list[str]:
     """``"A,A-ring[inertia_end=0.4,social_coeff=2]:feasibility"`` as its methods, stripped: a
-    comma inside brackets belongs to its method (``pso.resolve``)."""
+    comma inside brackets belongs to its method (``jaxarm.optim.methods``)."""
     return [method.strip() for method in re.split(r",(?![^\[]*\])", text)]
 
 

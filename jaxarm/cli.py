@@ -412,10 +412,10 @@ def _report_trajectory(args, problem, result, limits: dict) -> None:
 def _solve(args) -> None:
     _check_outputs(args)
     _check_settings(args)
-    from jaxarm.optim.methods import search_variant
+    from jaxarm.optim.methods import parse_method
 
     if args.method is not None:  # checked before the scenario is loaded
-        search_variant(args.method, args.constraint)
+        parse_method(args.method, args.constraint)
     problem = _load(args)
     limits = _timing_limits(args, problem)
     from jaxarm import plot
@@ -451,10 +451,11 @@ def _study(args) -> None:
                          f"got {args.methods!r}")
     problem = _load(args)
     from jaxarm import plot
-    from jaxarm.study import escape_study, parse_variants
+    from jaxarm.optim.methods import parse_methods
+    from jaxarm.study import escape_study
 
     constraint = args.constraint or "death"
-    parse_variants(methods, constraint)  # names checked before any compilation
+    parse_methods(methods, constraint)  # names checked before any compilation
     result = escape_study(problem, methods, n_restarts=args.restarts, n_iters=args.iters,
                           n_particles=args.particles, constraint=constraint, seed=args.seed,
                           chunk_size=args.chunk_size)

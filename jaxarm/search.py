@@ -14,7 +14,7 @@ from jaxarm.checks.evaluate import certify
 from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS
 from jaxarm.model.problem import Problem
 from jaxarm.optim import evosax_adapter, pso
-from jaxarm.optim.methods import search_variant
+from jaxarm.optim.methods import parse_method
 from jaxarm.optim.restarts import N_ITERS, N_PARTICLES, RestartOutcome, run_restarts
 
 
@@ -228,10 +228,10 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
     began = time.perf_counter()
     if method is None:
         constraint = DEFAULT_CONSTRAINT if constraint is None else constraint
-        variants = [search_variant(name, constraint) for name in DEFAULT_METHODS]
+        variants = [parse_method(name, constraint) for name in DEFAULT_METHODS]
         n_restarts = DEFAULT_RESTARTS if n_restarts is None else n_restarts
     else:
-        variants = [search_variant(method, constraint)]
+        variants = [parse_method(method, constraint)]
         n_restarts = 1 if n_restarts is None else n_restarts
     constraint = variants[0].constraint
     if (isinstance(variants[0].config, evosax_adapter.StrategyConfig)

@@ -20,8 +20,7 @@ from jaxarm._compile.padding import equal_chunk_length
 from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import fitness
 from jaxarm.model.problem import Problem
-from jaxarm.optim import evosax_adapter, pso
-from jaxarm.optim.methods import Variant, parse_method
+from jaxarm.optim.methods import Variant, parse_methods
 from jaxarm.optim.restarts import (
     N_ITERS,
     N_PARTICLES,
@@ -30,31 +29,6 @@ from jaxarm.optim.restarts import (
     run_restarts,
 )
 from jaxarm.stats import Comparison, fisher_exact, newcombe_interval, wilson_interval
-
-
-def parse_variants(methods: Sequence, constraint: str) -> list[Variant]:
-    """Study rows from method names (``jaxarm.optim.methods``: ``"A"``, ``"A:feasibility"``,
-    ``"A-ring[inertia_end=0.4]:feasibility"``, ``"evosax:CMA_ES"``), ``PSOConfig``s or
-    ``Variant``s.
-
-    Entries that name no constraint get ``constraint``. A ``PSOConfig`` is labelled "custom",
-    the next ones "custom-2", "custom-3", ...; a ``Variant`` keeps its own label. Labels must
-    be unique.
-    """
-    if isinstance(methods, (str, pso.PSOConfig, Variant, evosax_adapter.StrategyConfig)):
-        methods = [methods]  # one method, not its characters or fields
-    variants, n_custom = [], 0
-    for method in methods:
-        custom = isinstance(method, pso.PSOConfig)
-        n_custom += custom
-        variant = parse_method(method, constraint,
-                               custom_label="custom" if n_custom <= 1 else f"custom-{n_custom}")
-        if any(v.label == variant.label for v in variants):
-            raise ValueError(f"methods must have unique labels, got {variant.label!r} twice")
-        variants.append(variant)
-    if not variants:
-        raise ValueError(f"methods must name at least one method, got {methods!r}")
-    return variants
 
 
 class EvolvingRuns(NamedTuple):
@@ -264,8 +238,8 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
     Args:
       problem: the problem.
       methods: entries "A", "B", "C", "A:feasibility" (method:constraint),
-        "A-ring[inertia_end=0.4]:feasibility" (``pso.resolve``'s names), ``PSOConfig``s or
-        ``Variant``s (see ``parse_variants``); labels must be unique.
+        "A-ring[inertia_end=0.4]:feasibility" (``jaxarm.optim.methods``' names), ``PSOConfig``s
+        or ``Variant``s (``methods.parse_methods``); labels must be unique.
       n_restarts: seeds (restarts) per method; the same restart indices for every method.
       n_iters: PSO iterations (paper: 100).
       n_particles: swarm size (paper: 20).
@@ -286,7 +260,7 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
       >>> [(m.variant.label, m.n_restarts) for m in study.methods]
       [('A', 4), ('B', 4)]
     """
-    variants = parse_variants(methods, constraint)
+    variants = parse_methods(methods, constraint)
     n_restarts = positive_int("n_restarts", n_restarts)
     chunk_size = positive_int("chunk_size", chunk_size)
     check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint,

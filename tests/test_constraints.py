@@ -74,11 +74,11 @@ def test_the_swarm_scores_every_personal_best_under_the_rule_of_the_moment():
     config = pso.PRESETS["A"]
     swarm = pso.swarm(config.params(), config.rules(), measure, -jnp.ones(2), jnp.ones(2),
                       n_particles=8, n_iters=20, constraint="epsilon")
-    state, _ = jax.jit(swarm.init)(jax.random.key(0))
+    state, _ = jax.jit(swarm.begin)(jax.random.key(0))
     step = jax.jit(swarm.step)  # one program (op by op: 84 small ones)
     for t in range(1, 21):
         state, info = step(jax.random.key(t), state, t)
-        expected = constraints.score("epsilon", state.rule, state.best, t, 20)
+        expected = constraints.score("epsilon", state.constraint_state, state.best, t, 20)
         np.testing.assert_array_equal(np.asarray(state.best_score), np.asarray(expected))
         assert int(state.global_index) == int(np.argmax(np.asarray(state.best_score)))
     assert float(state.best.ranked_violation[state.global_index]) == 0.0  # epsilon is 0 by then
@@ -89,8 +89,8 @@ def test_ring_topology_follows_the_best_of_each_particles_neighbours():
     state = pso.SwarmState(
         position=best_position, velocity=best_position, best_position=best_position,
         best=MEASURED, best_score=jnp.array([5.0, 1.0, 2.0, 0.0, 3.0]),
-        global_index=jnp.int32(0), iteration=jnp.int32(0), escape_iter=jnp.int32(0),
-        rule=constraints.initial_state(MEASURED), tie_key=jax.random.key(0))
+        global_index=jnp.int32(0), iteration=jnp.int32(0),
+        constraint_state=constraints.initial_state(MEASURED), tie_key=jax.random.key(0))
     attractor = np.asarray(pso._social_attractor(state, True))[:, 0]
     # neighbours (i-1, i, i+1) mod 5 -> the index of the best score among them
     np.testing.assert_array_equal(attractor, [0, 0, 2, 4, 0])

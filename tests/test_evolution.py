@@ -7,14 +7,14 @@ import pytest
 
 import jaxarm
 from jaxarm import cli, study
-from jaxarm.optim import evosax_adapter
+from jaxarm.optim import evosax_adapter, methods
 
 
 def test_a_missing_evosax_says_how_to_install_it(monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "evosax", None)  # import evosax now fails
     with pytest.raises(ValueError, match=r"evosax methods need evosax: pip install "
                                          r"'jaxarm\[bench\]'"):
-        study.parse_variants(["A", "evosax:CMA_ES"], "death")
+        methods.parse_methods(["A", "evosax:CMA_ES"], "death")
     for argv in (["solve", "paper-case-2", "--method", "evosax:DE"],
                  ["study", "paper-case-2", "--methods", "A,evosax:DE"]):
         assert cli.main(argv) == 2  # one line, the same advice, from both commands
@@ -58,9 +58,9 @@ def test_a_restart_does_not_depend_on_the_restarts_beside_it(problem):
 
 def test_bad_strategies_and_rules_are_refused(problem):
     with pytest.raises(ValueError, match=r"evosax has no strategy 'Nope'; it has .*CMA_ES"):
-        study.parse_variants(["evosax:Nope"], "death")
+        methods.parse_methods(["evosax:Nope"], "death")
     with pytest.raises(ValueError, match=r"constraint of evosax:DE:epsilon must be one of "
                                          r"\('death', 'feasibility'\)"):
-        study.parse_variants(["evosax:DE:epsilon"], "death")
+        methods.parse_methods(["evosax:DE:epsilon"], "death")
     with pytest.raises(ValueError, match="init_particles: evosax:CMA_ES starts from its own"):
         jaxarm.solve(problem, "evosax:CMA_ES", init_particles=[[0.0, 0.0, 0.0]])

@@ -59,25 +59,28 @@ def test_programs_made_counts_new_top_level_programs_only():
     assert cube.programs_made() == 2
 
 
-def _power(v, exponent):
+def _power(v, exponent, optimise=False):
     return v ** exponent
 
 
-def test_a_program_may_choose_xla_default_level_by_its_static_arguments():
-    power = jit_lib.jit(_power, static_argnames="exponent",
-                        default_level_when=lambda exponent: exponent > 2)
-    fast = _compiler_options_carried_by(power.lower(2.0, exponent=3))
-    usual = _compiler_options_carried_by(power.lower(2.0, exponent=2))
+def test_a_program_compiles_at_xla_default_level_where_its_caller_sets_the_flag():
+    power = jit_lib.jit(_power, static_argnames=("exponent", "optimise"), level_flag="optimise")
+    fast = _compiler_options_carried_by(power.lower(2.0, exponent=3, optimise=True))
+    usual = _compiler_options_carried_by(power.lower(2.0, exponent=3, optimise=False))
+    unset = _compiler_options_carried_by(power.lower(2.0, exponent=2))
     assert fast == {}
-    assert usual == ({"xla_backend_optimization_level": 1} if jax.default_backend() == "cpu"
-                     else {})
-    assert float(power(2.0, exponent=3)) == 8.0 and float(power(2.0, exponent=2)) == 4.0
-    assert power.programs_made() == 2
-    assert float(jax.jit(lambda v: power(v, exponent=3))(2.0)) == 8.0  # inside a caller's trace
+    assert usual == unset == ({"xla_backend_optimization_level": 1}
+                              if jax.default_backend() == "cpu" else {})
+    assert float(power(2.0, exponent=3, optimise=True)) == 8.0
+    assert float(power(2.0, exponent=2)) == 4.0
+    assert power.programs_made() == 3  # (3, True), (3, False) and (2, unset): each traced once
+    # inside a caller's trace
+    assert float(jax.jit(lambda v: power(v, exponent=3, optimise=True))(2.0)) == 8.0
 
 
 def test_the_certified_search_compiles_at_xla_default_level_where_it_screens_windows():
-    from jaxarm.optim.restarts import _screens_windows
-    assert _screens_windows(jaxarm.load_scenario("polygon-field").spec)
-    assert not _screens_windows(jaxarm.load_scenario("polygon-field", collision="sampled").spec)
-    assert not _screens_windows(jaxarm.load_scenario("paper-case-1").spec)  # circles alone
+    from jaxarm.checks.evaluate import compiles_best_at_default_level
+    assert compiles_best_at_default_level(jaxarm.load_scenario("polygon-field").spec)
+    assert not compiles_best_at_default_level(
+        jaxarm.load_scenario("polygon-field", collision="sampled").spec)
+    assert not compiles_best_at_default_level(jaxarm.load_scenario("paper-case-1").spec)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from jaxarm import choices
-from jaxarm.optim import constraints, pso
+from jaxarm.optim import constraints, methods, pso, restarts
 from jaxarm.optim.constraints import Measured
 
 LOW, HIGH = jnp.full(2, -1.0), jnp.full(2, 1.0)
@@ -55,7 +55,7 @@ def test_presets_are_the_papers_table_2():
 )
 def test_one_step_matches_a_hand_computation(config):
     swarm = make_swarm(config, sphere, n_particles=PARTICLES, n_iters=10)
-    state, _ = swarm.init(jax.random.key(1))
+    state, _ = swarm.begin(jax.random.key(1))
     # Make personal bests differ from positions so every term of the rule matters.
     state = state._replace(best_position=state.best_position * 0.5, global_index=jnp.int32(3))
     key = jax.random.key(7)
@@ -84,7 +84,7 @@ def test_one_step_matches_a_hand_computation(config):
 def test_personal_and_global_bests_follow_strict_improvement():
     config = pso.PRESETS["A"]
     swarm = make_swarm(config, sphere, n_particles=PARTICLES, n_iters=5)
-    state, _ = swarm.init(jax.random.key(2))
+    state, _ = swarm.begin(jax.random.key(2))
     for t in range(5):
         previous = state
         state, info = swarm.step(jax.random.key(t), state, t + 1)
@@ -108,13 +108,13 @@ def test_all_infeasible_death_penalty_keeps_particle_zero_as_global_best():
     """Paper-faithful MATLAB `max` tie-breaking: the documented evosax PR #109 behaviour."""
     config = pso.PRESETS["A"]
     swarm = make_swarm(config, all_infeasible, n_particles=PARTICLES, n_iters=4)
-    state, _ = swarm.init(jax.random.key(3))
+    state, _ = swarm.begin(jax.random.key(3))
     start = np.asarray(state.position)
     for t in range(4):
-        state, _ = swarm.step(jax.random.key(t), state, t + 1)
+        state, info = swarm.step(jax.random.key(t), state, t + 1)
         assert int(state.global_index) == 0
         np.testing.assert_array_equal(np.asarray(state.best_position), start)
-    assert int(state.escape_iter) == -1
+        assert int(info.n_feasible) == 0
 
 
 def test_random_tie_break_spreads_the_global_best():
@@ -122,7 +122,7 @@ def test_random_tie_break_spreads_the_global_best():
     swarm = make_swarm(config, all_infeasible, n_particles=PARTICLES, n_iters=1)
     chosen = set()
     for seed in range(20):
-        state, _ = swarm.init(jax.random.key(seed))
+        state, _ = swarm.begin(jax.random.key(seed))
         chosen.add(int(state.global_index))
     assert len(chosen) >= 4
 
@@ -137,7 +137,7 @@ def test_nan_and_inf_never_become_a_best():
 
     config = pso.PSOConfig("original", 2.0, 2.0, init_velocity=5.0)  # diverges quickly
     swarm = make_swarm(config, poisoned, n_particles=PARTICLES, n_iters=30)
-    state, _ = swarm.init(jax.random.key(4))
+    state, _ = swarm.begin(jax.random.key(4))
     for t in range(30):
         state, info = swarm.step(jax.random.key(t), state, t + 1)
         assert np.all(np.isfinite(np.asarray(state.best_position)))
@@ -147,51 +147,53 @@ def test_nan_and_inf_never_become_a_best():
 
 
 def test_escape_iteration_is_the_first_with_a_feasible_particle():
+    """The restart loop's escape iteration is the first update (stepped by hand with the
+    loop's keys) at which a particle is feasible."""
     config = pso.PRESETS["A"]
     low, high = jnp.full(2, -1.0), jnp.full(2, 0.0)  # the initial swarm is all infeasible
     swarm = make_swarm(config, sphere, n_particles=PARTICLES, n_iters=40, low=low, high=high)
-    state, _ = swarm.init(jax.random.key(5))
-    assert int(state.escape_iter) == -1
+    key = jax.random.key(5)
+    state, info = swarm.begin(jax.random.fold_in(key, 0))
+    assert int(info.n_feasible) == 0
     first = None
-    for t in range(1, 40):
-        state, info = swarm.step(jax.random.key(t), state, t)
+    for t in range(1, 41):
+        state, info = swarm.step(jax.random.fold_in(key, t), state, t)
         if first is None and int(info.n_feasible) > 0:
             first = t
-    assert first is not None and int(state.escape_iter) == first
+    outcome = restarts.run_restarts_of(key[None], swarm, 40)
+    assert first is not None and int(outcome.escape_iter[0]) == first
 
 
 def test_bad_configs_name_the_field():
     with pytest.raises(ValueError, match=r"velocity_rule must be one of .* got 'fast'"):
-        pso.resolve(pso.PSOConfig(velocity_rule="fast"))
+        methods.parse_method(pso.PSOConfig(velocity_rule="fast"))
     with pytest.raises(ValueError, match=r"constriction needs .* > 4, got 1.0 \+ 2.0"):
-        pso.resolve(pso.PSOConfig("constriction", 1.0, 2.0))
+        methods.parse_method(pso.PSOConfig("constriction", 1.0, 2.0))
     with pytest.raises(ValueError, match=r"cognitive_coeff must be a finite number >= 0"):
-        pso.resolve(pso.PSOConfig(cognitive_coeff=float("nan")))
+        methods.parse_method(pso.PSOConfig(cognitive_coeff=float("nan")))
     for name in ("D", "D-ring", "A-star", "a"):
         with pytest.raises(ValueError, match=r"method must be one of \('A', 'B', 'C', 'A-ring'"):
-            pso.resolve(name)
+            methods.parse_method(name)
 
 
 def test_ring_names_are_the_presets_with_the_ring_topology():
-    from jaxarm.study import parse_variants
-
     for name in choices.PRESET_NAMES:
-        assert pso.resolve(name + "-ring") == pso.PRESETS[name]._replace(topology="ring")
-        assert (pso.resolve(name + "-global-ring")
+        assert methods.parse_method(name + "-ring").config == pso.PRESETS[name]._replace(topology="ring")
+        assert (methods.parse_method(name + "-global-ring").config
                 == pso.PRESETS[name]._replace(topology="global-ring"))
-        assert pso.resolve(name).topology == "global"
-    variant, = parse_variants(["A-ring:epsilon"], "death")
+        assert methods.parse_method(name).config.topology == "global"
+    variant, = methods.parse_methods(["A-ring:epsilon"], "death")
     assert variant == ("A-ring:epsilon", pso.PRESETS["A"]._replace(topology="ring"), "epsilon")
-    variant, = parse_variants(["B-global-ring:epsilon"], "death")
+    variant, = methods.parse_methods(["B-global-ring:epsilon"], "death")
     assert variant.config == pso.PRESETS["B"]._replace(topology="global-ring")
 
 
 def test_fields_in_brackets_change_a_named_method():
-    assert (pso.resolve("A-ring[inertia_end=0.4]")
+    assert (methods.parse_method("A-ring[inertia_end=0.4]").config
             == pso.PRESETS["A"]._replace(topology="ring", inertia_end=0.4))
-    assert (pso.resolve("C[ tie_break = random , velocity_clamp=0.05]")
+    assert (methods.parse_method("C[ tie_break = random , velocity_clamp=0.05]").config
             == pso.PRESETS["C"]._replace(tie_break="random", velocity_clamp=0.05))
-    assert pso.resolve("A[velocity_clamp=none]").velocity_clamp is None
+    assert methods.parse_method("A[velocity_clamp=none]").config.velocity_clamp is None
     for method, message in [("A[inertia_end=x]", "inertia_end must be a number, got 'x'"),
                             ("A[speed=1]", "must be FIELD=VALUE with FIELD one of"),
                             ("A[]", "must be FIELD=VALUE"),
@@ -207,7 +209,7 @@ def test_fields_in_brackets_change_a_named_method():
                             ("A[velocity_clamp=1e-300]", "velocity_clamp must be 0 or at least"),
                             ("A[topology=star]", "topology must be one of")]:
         with pytest.raises(ValueError, match=re.escape(message)):
-            pso.resolve(method)
+            methods.parse_method(method)
 
 
 def test_global_ring_follows_the_global_best_then_the_ring():
@@ -215,7 +217,7 @@ def test_global_ring_follows_the_global_best_then_the_ring():
     global_, ring, both = (make_swarm(pso.PRESETS["A"]._replace(topology=t), sphere,
                                       n_particles=PARTICLES, n_iters=40)
                            for t in ("global", "ring", "global-ring"))
-    state, _ = both.init(jax.random.key(3))
+    state, _ = both.begin(jax.random.key(3))
     for t in range(1, 6):
         key = jax.random.key(100 + t)
         expected, _ = (global_ if t <= 2 else ring).step(key, state, t)
@@ -238,4 +240,4 @@ def test_presets_and_choices_agree():
         constraints.constraint_index("soft")
     with pytest.raises(ValueError,
                        match=r"topology must be one of \('global', 'ring', 'global-ring'\)"):
-        pso.resolve(pso.PSOConfig(topology="star"))
+        methods.parse_method(pso.PSOConfig(topology="star"))

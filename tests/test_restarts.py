@@ -11,6 +11,7 @@ from sizes import SMALL
 
 import jaxarm
 from jaxarm.optim import constraints, pso, restarts
+from jaxarm.optim.base import Optimizer, StepInfo
 from jaxarm.optim.constraints import Measured
 from jaxarm.optim.restarts import compiled_search
 
@@ -56,7 +57,7 @@ def test_jit_equals_no_jit_on_one_restart(case2):
 
 def test_paths_left_unproved_change_no_update(case2):
     """A certified search proves only the paths whose objective beats their particle's bar
-    (``pso.Swarm.bar``). Stepped by hand under every rule, each update with those paths left
+    (``base.Bar``). Stepped by hand under every rule, each update with those paths left
     unproved equals the update with every path proved, bit for bit, and paths were left."""
     # a tolerance of 1 cm: some paths end undecided, so some stop early (``Bar.free_only``;
     # asserted below: on other keys the third-order bound proved them all)
@@ -74,7 +75,7 @@ def test_paths_left_unproved_change_no_update(case2):
                           n_particles=SMALL["n_particles"], n_iters=n_iters,
                           constraint=constraints.constraint_index(constraint))
         tell = jax.jit(jax.vmap(swarm.tell, in_axes=(0, 0, 0, None)))
-        state, x = jax.vmap(swarm.start)(keys_at(keys, 0))
+        state, x = jax.vmap(swarm.init)(keys_at(keys, 0))
         for iteration in range(n_iters + 1):
             some, every = measure_some(x, jax.vmap(swarm.bar)(state)), measure_every(x)
             left += int(np.sum(np.isinf(np.asarray(some.violation))))
@@ -154,8 +155,8 @@ def test_restarts_sharded_over_two_devices_match_one_device(case2, tmp_path):
 
 
 def test_any_optimiser_given_as_ask_and_tell_runs_in_the_restart_loop():
-    """A random search (not PSO) written as a ``pso.Swarm`` plugs into ``run_restart``, which
-    measures its paths at one place."""
+    """A random search (not PSO) written as a ``base.Optimizer`` plugs into
+    ``run_restarts_of``, which measures its paths at one place."""
     low, high = jnp.full(2, -1.0), jnp.full(2, 1.0)
     calls = []
 
@@ -173,17 +174,17 @@ def test_any_optimiser_given_as_ask_and_tell_runs_in_the_restart_loop():
         better = measured.fitness[row] > best[1]
         best = (jnp.where(better, x[row], best[0]), jnp.where(better, measured.fitness[row],
                                                                best[1]))
-        return best, pso.StepInfo(global_position=best[0], global_fitness=best[1],
-                                  global_violation=jnp.where(best[0][0] > 0.5, 0.0, 1.0),
-                                  global_score=best[1],
-                                  n_feasible=(measured.violation == 0).sum(dtype=jnp.int32))
+        return best, StepInfo(global_position=best[0], global_fitness=best[1],
+                              global_violation=jnp.where(best[0][0] > 0.5, 0.0, 1.0),
+                              global_score=best[1],
+                              n_feasible=(measured.violation == 0).sum(dtype=jnp.int32))
 
-    def start(key):
+    def init(key):
         return sample(key, (jnp.zeros(2), jnp.asarray(-jnp.inf)))
 
-    swarm = pso.Swarm(start=start, tell=tell, ask=sample, measure=measure)
-    run = jax.jit(restarts.run_restart, static_argnums=(1, 2))
-    outcome = run(jax.random.key(0), swarm, 20)
+    swarm = Optimizer(init=init, tell=tell, ask=sample, measure=measure)
+    run_all = jax.jit(restarts.run_restarts_of, static_argnums=(1, 2))
+    outcome = jax.tree.map(lambda a: a[0], run_all(jax.random.key(0)[None], swarm, 20))
     assert calls == [(6, 2)]
     history = np.asarray(outcome.history)
     assert history.shape == (21,) and np.all(np.diff(history) >= 0)
@@ -195,12 +196,11 @@ def test_any_optimiser_given_as_ask_and_tell_runs_in_the_restart_loop():
     assert escape_fitness == pytest.approx(float(history[escape_iter]))
     # several restarts in one loop: each as it runs alone, with typed or raw keys
     keys = jax.random.split(jax.random.key(1), 3)
-    run_all = jax.jit(restarts.run_restarts_of, static_argnums=(1, 2))
     together = run_all(keys, swarm, 20)
     assert together.history.shape == (3, 21) and together.best_x.shape == (3, 2)
     raw = run_all(jax.random.key_data(keys), swarm, 20)
     for i in range(3):
-        alone = run(keys[i], swarm, 20)
+        alone = jax.tree.map(lambda a: a[0], run_all(keys[i][None], swarm, 20))
         for field, value in alone._asdict().items():
             np.testing.assert_array_equal(getattr(together, field)[i], value)
             np.testing.assert_array_equal(getattr(raw, field)[i], value)

@@ -189,20 +189,20 @@ def test_threads_asking_for_one_program_together_trace_and_compile_it_once(
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
-def _scaled(v, factor):
+def _scaled(v, factor, optimise):
     return v * factor
 
 
 def test_stored_programs_keep_the_level_their_static_arguments_choose(monkeypatch, tmp_path):
     monkeypatch.setattr(stored_programs, "_directory", tmp_path)
-    scaled = jit(_scaled, static_argnames="factor", storable=True,
-                 default_level_when=lambda factor: factor > 2)
+    scaled = jit(_scaled, static_argnames=("factor", "optimise"), storable=True,
+                 level_flag="optimise")
     v = np.arange(3.0, dtype=np.float32)
-    np.testing.assert_array_equal(scaled(v, factor=3), 3 * v)
-    np.testing.assert_array_equal(scaled(v, factor=2), 2 * v)
+    np.testing.assert_array_equal(scaled(v, factor=3, optimise=True), 3 * v)
+    np.testing.assert_array_equal(scaled(v, factor=2, optimise=False), 2 * v)
     assert len(list(tmp_path.iterdir())) == 2  # one stored program per factor
     on_cpu = jax.default_backend() == "cpu"
     for (statics, _, _), stored in scaled._stored.items():
         options = _compiler_options_carried_by(stored.call.lower(v))
-        at_default = dict(statics)["factor"] > 2 or not on_cpu
+        at_default = dict(statics)["optimise"] or not on_cpu
         assert options == ({} if at_default else {"xla_backend_optimization_level": 1})

@@ -6,9 +6,8 @@ instead of XLA's default 2: programs compile faster and run as fast, PSO results
 bit-identical, and the evosax CMA-ES restarts differ in their last bits
 (``benchmarks/RESULTS.md``, *Decisions and negative results*, "One copy of the check per
 program, and LLVM optimisation level 1"). A program whose run outweighs its compilation can
-ask for XLA's default level by its static arguments (``default_level_when``): the certified
-search in worlds with polygons ran faster there, with the same results. Other backends keep
-XLA's defaults (untested there).
+be compiled at XLA's default level instead, call by call, by a static boolean argument that
+its caller sets (``level_flag``). Other backends keep XLA's defaults (untested there).
 """
 
 from __future__ import annotations
@@ -23,7 +22,7 @@ from jaxarm._compile import stored_programs
 CPU_COMPILER_OPTIONS = {"xla_backend_optimization_level": 1}
 
 
-def jit(fun=None, *, storable: bool = False, default_level_when=None, **options):
+def jit(fun=None, *, storable: bool = False, level_flag: str | None = None, **options):
     """``jax.jit(fun, **options)``, compiled with ``CPU_COMPILER_OPTIONS`` when JAX runs on CPU.
 
     The backend is read at the first call (so after ``jax.distributed.initialize()``, which must
@@ -36,16 +35,16 @@ def jit(fun=None, *, storable: bool = False, default_level_when=None, **options)
     module-level function whose trace depends on nothing but its arguments and jaxarm's source
     as written (not a closure over values made at run time).
 
-    ``default_level_when(**statics) -> bool``, given the static arguments by name, says which
-    calls compile at XLA's default optimisation level instead (on CPU; elsewhere nothing
-    changes): programs whose run costs far more than their compilation. ``lower`` and
-    ``trace`` choose by their arguments as calls do; other attributes of the ``jax.jit`` are
-    those of its ``CPU_COMPILER_OPTIONS`` program.
+    ``level_flag`` names a static boolean argument of ``fun`` (it must be in
+    ``static_argnames``): calls that set it true compile at XLA's default optimisation level
+    instead (on CPU; elsewhere nothing changes), for programs whose run costs far more than
+    their compilation. The caller decides; this layer knows nothing of what the program holds.
+    ``lower`` and ``trace`` choose by their arguments as calls do; other attributes of the
+    ``jax.jit`` are those of its ``CPU_COMPILER_OPTIONS`` program.
     """
     if fun is None:
-        return functools.partial(jit, storable=storable, default_level_when=default_level_when,
-                                 **options)
-    return _Program(fun, options, storable, default_level_when)
+        return functools.partial(jit, storable=storable, level_flag=level_flag, **options)
+    return _Program(fun, options, storable, level_flag)
 
 
 try:  # JAX's own test for "outside any trace" (private: JAX exports none)
@@ -94,12 +93,12 @@ class _Program:
     """A ``jax.jit`` made at its first use, for the backend in use then; with
     ``jaxarm._compile.stored_programs`` on, top-level calls go through stored traced programs instead.
 
-    Safe to call from several threads: a program is made once (and ``jax.jit`` compiled a
-    program once when two threads called it together, checked by hand)."""
+    Safe to call from several threads: a program is made once."""
 
-    def __init__(self, fun, options: dict, storable: bool = False, default_level_when=None):
+    def __init__(self, fun, options: dict, storable: bool = False,
+                 level_flag: str | None = None):
         self._fun, self._options, self._storable = fun, options, storable
-        self._default_level_when = default_level_when
+        self._level_flag = level_flag
         self._jitted = {}  # at the default level (bool) -> jax.jit
         self._nested = jax.jit(fun, **options)
         self._stored = {}  # Call.memo_key() -> stored_programs.Stored, or None where export refused it
@@ -112,8 +111,8 @@ class _Program:
         """Whether a call with these static arguments (None: unknown) compiles at XLA's default
         level."""
         return (jax.default_backend() != "cpu"
-                or (statics is not None and self._default_level_when is not None
-                    and bool(self._default_level_when(**statics))))
+                or (statics is not None and self._level_flag is not None
+                    and bool(statics.get(self._level_flag, False))))
 
     def _compiler_options(self, statics: dict | None):
         return None if self._at_default_level(statics) else CPU_COMPILER_OPTIONS
@@ -130,7 +129,7 @@ class _Program:
 
     def _statics(self, args, kwargs) -> dict | None:
         """The static arguments of a call, by name (None when nothing chooses by them)."""
-        if self._default_level_when is None:
+        if self._level_flag is None:
             return None
         bound = stored_programs.signature(self._fun).bind(*args, **kwargs)
         return {name: value for name, value in bound.arguments.items()
@@ -195,6 +194,6 @@ class _Program:
     def __getattr__(self, name: str):  # eval_shape, clear_cache, ...
         if name.startswith("__") or name in ("_fun", "_options", "_jitted", "_nested", "_stored",
                                              "_storable", "_lock", "_traces", "_counted",
-                                             "_default_level_when"):
+                                             "_level_flag"):
             raise AttributeError(name)
         return getattr(self._compiled(), name)

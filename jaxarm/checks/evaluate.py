@@ -34,39 +34,64 @@ class Evaluation(NamedTuple):
     distance: jax.Array  # shape=(...,), joint angle travelling distance (eq. 5)
 
 
-def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x, bar=None) -> Evaluation:
+class ProofRequest(NamedTuple):
+    """What a caller needs the certified check to prove of each path, each field of shape
+    (...,): a search asks for proofs only of the paths that could change it."""
+
+    objective_above: jax.Array  # prove only the paths whose objective (1 / distance) exceeds
+    #   this (-inf: every path); the others' violation is inf unless a sample finds them
+    #   colliding
+    free_only: jax.Array  # bool: stop at the first piece that is not free (only whether the
+    #   path is free matters; its violation is then what was found so far)
+
+
+def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x,
+             request: ProofRequest | None = None) -> Evaluation:
     """Fitness, violation and travelling distance of paths.
 
     Pure and traceable: ``spec`` must be static under jit, ``arrays`` and ``x`` may be traced.
     All leading axes of ``x`` are flattened into one batch axis first: XLA's CPU loops
-    vectorise a long flat axis far better than a short innermost one such as 20 particles
-    (about 3x at 1000 x 20 paths).
+    vectorise a long flat axis far better than a short innermost one such as 20 particles.
 
     Args:
       spec: ``problem.spec``.
       arrays: ``problem.arrays``.
       x: free parameters, shape (..., n_free).
-      bar: optional ``(objective, free_only)`` (``pso.Bar``), each of shape (...,): the
-        certified check proves only the paths whose objective (1 / distance) exceeds
-        ``objective`` (the others' violation is inf unless a sample finds them colliding), and
-        stops at the first piece that is not free on a path where ``free_only`` (its violation
-        is then what was found so far). ``pso.Swarm.bar``: what could not change the swarm.
-        With a bar, a proof keeps ``certified.search_spare`` beyond the margin, so that
-        ``certify`` proves every path a search found free. Ignored when sampled.
+      request: optional ``ProofRequest`` with fields of shape (...,): what the certified check
+        must prove (None: every path, fully). With a request, a proof keeps
+        ``certified.search_spare`` beyond the margin, so that ``certify`` proves every path a
+        search found free. Ignored when sampled.
 
     Returns:
       ``Evaluation`` of arrays of shape (...,).
     """
     rows = x.reshape((math.prod(x.shape[:-1]), x.shape[-1]))  # -1 fails on empty batches
-    bar = None if bar is None else [jnp.reshape(b, rows.shape[:1]) for b in bar]
-    evaluation, _, _ = _check_rows(spec, arrays, rows, bar)
+    if request is not None:
+        request = ProofRequest(*(jnp.reshape(field, rows.shape[:1]) for field in request))
+    evaluation, _, _ = _check_rows(spec, arrays, rows, request)
     return jax.tree.map(lambda a: a.reshape(x.shape[:-1]), evaluation)
 
 
-def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows, bar=None):
-    """``evaluate`` of paths ``rows``, shape (B, n_free) (``bar``: None or two arrays of shape
-    (B,)), and the checks it ran: (Evaluation, the certified check or None when sampled, the
-    joint-limit check or None without limits)."""
+def link_clearances(world, links: list) -> list:
+    """Per link, a lower bound on its signed distance to the nearest obstacle (cm; negative
+    inside one; exact for circles), each of the links' batch shape: what ``refine``'s
+    barrier descends (``collision.link_clearance_bounds``)."""
+    return collision_lib.link_clearance_bounds(world, links)
+
+
+def compiles_best_at_default_level(spec: ProblemSpec) -> bool:
+    """Whether a program holding this spec's check runs faster compiled at XLA's default
+    optimisation level than at jaxarm's level 1 on CPU (``jaxarm._compile.jit``), with the same
+    results: the certified check screening windows (``certified.screens_windows``; see
+    ``benchmarks/RESULTS.md``, "The certified search at XLA's default optimisation level")."""
+    return spec.collision == "certified" and certified_lib.screens_windows(spec)
+
+
+def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows,
+                request: ProofRequest | None = None):
+    """``evaluate`` of paths ``rows``, shape (B, n_free) (``request``: None, or fields of
+    shape (B,)), and the checks it ran: (Evaluation, the certified check or None when sampled,
+    the joint-limit check or None without limits)."""
     # Separate loops for distance and collision: one scan carrying both was no faster, and
     # slower for the certified check at small batches (XLA splits a bigger loop body into
     # more fusions).
@@ -81,8 +106,9 @@ def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows, bar=None):
     else:
         prove = free_only = None
         spare = 0.0
-        if bar is not None:  # a search: its proofs keep a spare (``certified.search_spare``)
-            prove, free_only = ~(1.0 / distance <= bar[0]), bar[1]  # NaN: proved
+        if request is not None:  # a search: its proofs keep a spare (``certified.search_spare``)
+            prove = ~(1.0 / distance <= request.objective_above)  # NaN: proved
+            free_only = request.free_only
             spare = certified_lib.search_spare(arrays.lengths)
         check = certify_rows(spec, arrays, rows, prove, free_only, spare)
         violation = check.violation
@@ -116,37 +142,41 @@ def limit_rows(spec: ProblemSpec, arrays: ProblemArrays, rows) -> limits_lib.Lim
 
 @functools.cache
 def vmapped_evaluate(spec: ProblemSpec):
-    """``evaluate`` for one spec, as a function of ``(arrays, x, bar=None)`` (``bar``: a
-    ``pso.Bar`` or pair of arrays of shape ``x.shape[:-1]``; None: every path proved in full)
+    """``evaluate`` for one spec, as a function of ``(arrays, x, request=None)`` (``request``: a
+    ``ProofRequest`` with fields of shape ``x.shape[:-1]``; None: every path proved in full)
     whose ``jax.vmap`` over x folds the mapped axis into the batch (one long kernel call)
     instead of adding a short outer axis to every array in it. Not reverse-differentiable
     (``jax.custom_batching``).
     """
     @jax.custom_batching.custom_vmap
-    def evaluate_spec(arrays, x, bar):
-        return evaluate(spec, arrays, x, bar)
+    def evaluate_spec(arrays, x, request):
+        return evaluate(spec, arrays, x, request)
 
     @evaluate_spec.def_vmap
-    def fold_mapped_axis(axis_size, in_batched, arrays, x, bar):
-        arrays_batched, x_batched, bar_batched = in_batched
+    def fold_mapped_axis(axis_size, in_batched, arrays, x, request):
+        arrays_batched, x_batched, request_batched = in_batched
         if any(jax.tree.leaves(arrays_batched)):  # several problems: an ordinary vmap
             in_axes = (jax.tree.map(lambda b: 0 if b else None, arrays_batched),
-                       0 if x_batched else None, tuple(0 if b else None for b in bar_batched))
-            result = jax.vmap(functools.partial(evaluate, spec), in_axes=in_axes)(arrays, x, bar)
+                       0 if x_batched else None,
+                       ProofRequest(*(0 if b else None for b in request_batched)))
+            result = jax.vmap(functools.partial(evaluate, spec), in_axes=in_axes)(arrays, x,
+                                                                                  request)
         else:
             if not x_batched:
                 x = jnp.broadcast_to(x, (axis_size,) + x.shape)
-            bar = tuple(b if batched else jnp.broadcast_to(b, (axis_size,) + b.shape)
-                        for b, batched in zip(bar, bar_batched))
-            result = evaluate_spec(arrays, x, bar)
+            request = ProofRequest(*(
+                field if batched else jnp.broadcast_to(field, (axis_size,) + field.shape)
+                for field, batched in zip(request, request_batched)))
+            result = evaluate_spec(arrays, x, request)
         return result, Evaluation(True, True, True)
 
-    def evaluate_with_bar(arrays, x, bar=None):
-        if bar is None:  # every path proved, fully
-            bar = (jnp.full(x.shape[:-1], -jnp.inf, x.dtype), jnp.zeros(x.shape[:-1], bool))
-        return evaluate_spec(arrays, x, tuple(bar))
+    def evaluate_with_request(arrays, x, request=None):
+        if request is None:  # every path proved, fully
+            request = ProofRequest(jnp.full(x.shape[:-1], -jnp.inf, x.dtype),
+                                   jnp.zeros(x.shape[:-1], bool))
+        return evaluate_spec(arrays, x, ProofRequest(*request))
 
-    return evaluate_with_bar
+    return evaluate_with_request
 
 
 @functools.partial(jit, static_argnums=0, storable=True)

@@ -86,7 +86,7 @@ def path_measures(fitness, violation, distance) -> Measured:
                     violation=violation)
 
 
-class RuleState(NamedTuple):
+class ConstraintState(NamedTuple):
     """What an adaptive rule remembers (scalars; unused by death and feasibility)."""
 
     epsilon0: jax.Array  # shape=(), epsilon(0)
@@ -94,17 +94,15 @@ class RuleState(NamedTuple):
     penalty: jax.Array  # shape=(), lambda now
 
 
-def constraint_index(constraint: str) -> int:
-    """The rule's position in ``CONSTRAINTS``: how a compiled search receives it, as data."""
-    return CONSTRAINTS.index(one_of("constraint", constraint, CONSTRAINTS))
+def constraint_index(constraint):
+    """A rule given by name (its position in ``CONSTRAINTS``: how a compiled search receives
+    it, as data) or already by index (an int, or traced), as its index."""
+    if isinstance(constraint, str):
+        return CONSTRAINTS.index(one_of("constraint", constraint, CONSTRAINTS))
+    return constraint
 
 
-def rule_index(constraint):
-    """A rule given by name or by index (an int, or traced) as its index in ``CONSTRAINTS``."""
-    return constraint_index(constraint) if isinstance(constraint, str) else constraint
-
-
-def initial_state(measured: Measured) -> RuleState:
+def initial_state(measured: Measured) -> ConstraintState:
     """The adaptive rules' state from the initial swarm's measurements (shape (n_particles,))."""
     violation = measured.ranked_violation
     epsilon0 = jnp.sort(violation)[int(EPSILON_QUANTILE * (violation.shape[0] - 1))]
@@ -112,18 +110,18 @@ def initial_state(measured: Measured) -> RuleState:
     balanced = jnp.mean(measured.objective) / jnp.where(mean_violation > 0, mean_violation, 1.0)
     usable = (mean_violation > 0) & jnp.isfinite(balanced) & (balanced > 0)
     penalty0 = jnp.where(usable, balanced, 1.0)
-    return RuleState(epsilon0=epsilon0, penalty0=penalty0.astype(violation.dtype),
+    return ConstraintState(epsilon0=epsilon0, penalty0=penalty0.astype(violation.dtype),
                      penalty=penalty0.astype(violation.dtype))
 
 
-def epsilon_level(state: RuleState, iteration, n_iters: int) -> jax.Array:
+def epsilon_level(state: ConstraintState, iteration, n_iters: int) -> jax.Array:
     """epsilon(t) of the schedule above (shape ())."""
     end = EPSILON_END * n_iters
     remaining = jnp.clip(1.0 - iteration / end, 0.0, 1.0)
     return state.epsilon0 * remaining ** EPSILON_POWER
 
 
-def score(constraint, state: RuleState, measured: Measured, iteration, n_iters: int):
+def score(constraint, state: ConstraintState, measured: Measured, iteration, n_iters: int):
     """The scores of ``measured`` (shape (n,)) under the rule at update ``iteration``.
 
     Examples:
@@ -133,7 +131,7 @@ def score(constraint, state: RuleState, measured: Measured, iteration, n_iters: 
       >>> score("feasibility", state, free_and_colliding, 1, 100).tolist()
       [5.0, -3.0]
     """
-    index = rule_index(constraint)
+    index = constraint_index(constraint)
     fitness, violation, objective = measured.fitness, measured.ranked_violation, measured.objective
     feasible = violation == 0
     epsilon = epsilon_level(state, iteration, n_iters)
@@ -149,7 +147,7 @@ def score(constraint, state: RuleState, measured: Measured, iteration, n_iters: 
     return jnp.where(jnp.isfinite(result), result, -jnp.inf)  # NaN never becomes a best
 
 
-def updated_state(state: RuleState, global_feasible) -> RuleState:
+def updated_state(state: ConstraintState, global_feasible) -> ConstraintState:
     """lambda after an update whose global best is (or is not) collision-free."""
     raised = jnp.minimum(state.penalty * PENALTY_FACTOR, state.penalty0 * PENALTY_MAX_RATIO)
     return state._replace(penalty=jnp.where(global_feasible, state.penalty, raised))

@@ -2,7 +2,7 @@
 
 A strategy (a class of ``evosax.algorithms`` built from a population size and a solution
 shape alone: ``"evosax:CMA_ES"``, ``"evosax:DE"`` for ``DifferentialEvolution`` and
-``"evosax:PSO"`` are tested or tried; others are not) becomes a ``pso.Swarm``, so it
+``"evosax:PSO"`` are tested or tried; others are not) implements ``jaxarm.optim.base.Optimizer``, so it
 runs in the restart loop of ``jaxarm.optim.restarts`` exactly like the PSO: vmapped over restarts
 in one compiled program, with the same seeds, the same budget (``n_particles`` evaluations
 at iteration 0, then ``n_particles`` per generation for ``n_iters`` generations) and the
@@ -31,7 +31,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxarm._compile.jit import rank_promotion_allowed
-from jaxarm.optim import pso
+from jaxarm.optim.base import MeasureFn, Optimizer, StepInfo, on_first_iteration
 from jaxarm.optim.constraints import constraint_index
 
 PREFIX = "evosax:"
@@ -75,51 +75,19 @@ class StrategyConfig(NamedTuple):
         return self
 
     def validate(self) -> "StrategyConfig":
-        return resolve(PREFIX + self.strategy)
-
-
-def resolve(method: str) -> StrategyConfig:
-    """``"evosax:<Strategy>"`` as a ``StrategyConfig``, or a ValueError naming the method."""
-    name = ALIASES.get(method[len(PREFIX):], method[len(PREFIX):])
-    algorithms = _evosax_algorithms()
-    strategy = getattr(algorithms, name, None)
-    if not (isinstance(strategy, type) and issubclass(
-            strategy, algorithms.base.EvolutionaryAlgorithm)):
-        known = sorted(set(algorithms.distribution_based_algorithms)
-                       | set(algorithms.population_based_algorithms))
-        raise ValueError(f"method {method!r}: evosax has no strategy {name!r}; it has "
-                         f"{', '.join(known)} (and the aliases {', '.join(ALIASES)})")
-    return StrategyConfig(name)
-
-
-def resolve_method(method):
-    """A preset name, ``"evosax:<Strategy>"``, a ``PSOConfig`` or a ``StrategyConfig``, as the
-    validated config that ``jaxarm.optim.restarts`` runs."""
-    if isinstance(method, StrategyConfig):
-        return method.validate()
-    if isinstance(method, str) and method.startswith(PREFIX):
-        return resolve(method)
-    return pso.resolve(method)
-
-
-def check_constraint(config, constraint: str, label: str) -> None:
-    """evosax strategies take the death penalty or feasibility rules only."""
-    if isinstance(config, StrategyConfig) and constraint not in STRATEGY_CONSTRAINTS:
-        raise ValueError(f"constraint of {label} must be one of {STRATEGY_CONSTRAINTS} (evosax "
-                         f"strategies), got {constraint!r}")
-
-
-def is_strategy(method) -> bool:
-    """Whether ``method`` is a ``StrategyConfig`` or a name ``"evosax:..."``; a name that
-    means evosax without that spelling ("evosax", "EvoSAX:CMA_ES") is a ValueError saying
-    how to write it."""
-    if isinstance(method, str) and not method.startswith(PREFIX) and (
-            method.partition(":")[0].strip().lower() == PREFIX[:-1]):
-        raise ValueError(f"method {method!r}: an evosax strategy is named "
-                         f"{PREFIX}<Strategy>, such as {PREFIX}CMA_ES"
-                         + ("" if available() else f"; {MISSING}"))
-    return isinstance(method, StrategyConfig) or (isinstance(method, str)
-                                                   and method.startswith(PREFIX))
+        """The config with its alias resolved ("DE": "DifferentialEvolution"), or a ValueError
+        naming the method when evosax has no such strategy (or is not installed)."""
+        name = ALIASES.get(self.strategy, self.strategy)
+        algorithms = _evosax_algorithms()
+        strategy = getattr(algorithms, name, None)
+        if not (isinstance(strategy, type) and issubclass(
+                strategy, algorithms.base.EvolutionaryAlgorithm)):
+            known = sorted(set(algorithms.distribution_based_algorithms)
+                           | set(algorithms.population_based_algorithms))
+            raise ValueError(f"method {PREFIX + self.strategy!r}: evosax has no strategy "
+                             f"{name!r}; it has {', '.join(known)} (and the aliases "
+                             f"{', '.join(ALIASES)})")
+        return StrategyConfig(name)
 
 
 class StrategyState(NamedTuple):
@@ -133,9 +101,9 @@ class StrategyState(NamedTuple):
     tell_key: jax.Array  # the key of the next tell (or of the strategy's init)
 
 
-def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high, *,
-                   n_particles: int, constraint) -> pso.Swarm:
-    """The strategy as a ``pso.Swarm`` (module docstring).
+def strategy_swarm(config: StrategyConfig, measure_fn: MeasureFn, low, high, *,
+                   n_particles: int, constraint) -> Optimizer:
+    """The strategy as an ``Optimizer`` (module docstring).
 
     Args:
       config: the strategy.
@@ -157,7 +125,7 @@ def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high,
                               DistributionBasedAlgorithm)
     feasibility = jnp.asarray(constraint) == constraint_index("feasibility")
 
-    def start(key):
+    def init(key):
         draw, start_key, ask, tell = jax.random.split(key, 4)
         if distribution:
             mean = jax.random.uniform(draw, low.shape, low.dtype, low, high)
@@ -172,7 +140,7 @@ def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high,
                              best_fitness=zero, best_violation=zero,
                              tell_key=tell if distribution else start_key), x
 
-    def tell(state: StrategyState, x, measured, iteration) -> tuple[StrategyState, pso.StepInfo]:
+    def tell(state: StrategyState, x, measured, iteration) -> tuple[StrategyState, StepInfo]:
         cost = jnp.where(feasibility & (measured.ranked_violation > 0), measured.ranked_violation,
                          -measured.fitness)
 
@@ -182,7 +150,7 @@ def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high,
         if distribution:
             inner = told()
         else:  # the initial population makes the strategy's state
-            inner = pso.on_first_iteration(
+            inner = on_first_iteration(
                 iteration, lambda: initial(state.tell_key, x, cost, params), told)
         best = jnp.argmin(cost)  # the first on ties
         better = cost[best] < state.best_cost
@@ -192,7 +160,7 @@ def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high,
                                best_fitness=keep(measured.fitness[best], state.best_fitness),
                                best_violation=keep(measured.violation[best],
                                                    state.best_violation))
-        return state, pso.StepInfo(global_position=state.best_x,
+        return state, StepInfo(global_position=state.best_x,
                                    global_fitness=state.best_fitness,
                                    global_violation=state.best_violation,
                                    global_score=-state.best_cost,
@@ -203,4 +171,4 @@ def strategy_swarm(config: StrategyConfig, measure_fn: pso.MeasureFn, low, high,
         x, inner = asked(ask_key, state.inner, params)
         return state._replace(inner=inner, tell_key=tell_key), x
 
-    return pso.Swarm(start=start, tell=tell, ask=ask, measure=measure_fn)
+    return Optimizer(init=init, tell=tell, ask=ask, measure=measure_fn)

@@ -1,9 +1,11 @@
-"""Method names: the one grammar that ``solve``, ``escape_study`` and the CLI read.
+"""Method names: the one grammar that ``solve``, ``escape_study`` and the CLI read, and its one
+parser, ``parse_method`` (``parse_methods`` for a study's list).
 
     method      name[":" constraint]
-    name        "A" | "B" | "C", a topology suffix ("-ring", "-global-ring"), fields in
-                brackets ("A-ring[inertia_end=0.4]"): ``pso.resolve``;
-                or "evosax:<Strategy>": ``evosax_adapter.resolve``
+    name        "A" | "B" | "C" (``pso.PRESETS``), with a topology suffix ("-ring",
+                "-global-ring") and fields in brackets ("A-ring[inertia_end=0.4]", any
+                ``PSOConfig`` field, comma-separated; ``velocity_clamp=none`` for no clamp);
+                or "evosax:<Strategy>" (``jaxarm.optim.evosax_adapter``)
     constraint  "death" | "feasibility" | "epsilon" | "penalty": ``jaxarm.optim.constraints``
 
 A ``PSOConfig`` or ``StrategyConfig`` may stand for the name; the constraint then comes from
@@ -12,17 +14,19 @@ the caller.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import NamedTuple, Sequence
 
-from jaxarm.choices import CONSTRAINTS, one_of
+from jaxarm.choices import CONSTRAINTS, PSO_METHODS, TOPOLOGY_SUFFIXES, one_of
 from jaxarm.optim import evosax_adapter, pso
+from jaxarm.optim.evosax_adapter import PREFIX, StrategyConfig
+from jaxarm.optim.pso import PSOConfig
 
 
 class Variant(NamedTuple):
     """A method under a constraint rule, and its label: one row of a study, one ``solve``."""
 
     label: str  # e.g. "A", "A:feasibility", "custom", "evosax:CMA_ES"
-    config: pso.PSOConfig | evosax_adapter.StrategyConfig
+    config: PSOConfig | StrategyConfig
     constraint: str
 
     @property
@@ -32,14 +36,18 @@ class Variant(NamedTuple):
         return self.label[:-len(suffix)] if self.label.endswith(suffix) else self.label
 
 
-def parse_method(method, constraint: str = "death", custom_label: str = "custom") -> Variant:
+def parse_method(method, constraint: str | None = None, *, default_constraint: str = "death",
+                 custom_label: str = "custom") -> Variant:
     """``method`` as a validated ``Variant``.
 
     Args:
       method: a name of the grammar above, a ``PSOConfig``, a ``StrategyConfig`` or a
         ``Variant``.
-      constraint: the rule when ``method`` names none.
-      custom_label: the label of a ``PSOConfig`` (or ``StrategyConfig``-less custom config).
+      constraint: the rule the caller asks for (``solve``'s ``constraint``): a method that
+        names another is a ValueError naming both. None: the rule the method names, else
+        ``default_constraint``.
+      default_constraint: the rule of a method that names none (a study's ``constraint``).
+      custom_label: the label of a ``PSOConfig``.
 
     Returns:
       ``Variant``; its label carries the rule unless it is the death penalty.
@@ -50,36 +58,115 @@ def parse_method(method, constraint: str = "death", custom_label: str = "custom"
     Examples:
       >>> parse_method("A-ring:feasibility").constraint
       'feasibility'
+      >>> parse_method("B-ring").config == pso.PRESETS["B"]._replace(topology="ring")
+      True
+      >>> parse_method("A-ring[inertia_end=0.4]").config.inertia_end
+      0.4
     """
+    fallback = default_constraint if constraint is None else constraint
     if isinstance(method, Variant):
-        one_of("constraint", method.constraint, CONSTRAINTS)
-        variant = method._replace(config=evosax_adapter.resolve_method(method.config))
+        rule = one_of("constraint", method.constraint, CONSTRAINTS)
+        variant = method._replace(config=_config(method.config, method.config))
+    elif isinstance(method, str):  # "A:feasibility", "evosax:CMA_ES:feasibility"
+        prefix = PREFIX if _names_evosax(method) else ""
+        name, colon, named = method[len(prefix):].partition(":")
+        rule = one_of("constraint", named if colon else fallback, CONSTRAINTS)
+        name = prefix + name
+        variant = Variant(name if rule == "death" else f"{name}:{rule}", _config(name, name),
+                          rule)
     else:
-        if isinstance(method, str):  # "A:feasibility", "evosax:CMA_ES:feasibility"
-            evosax = evosax_adapter.is_strategy(method)
-            prefix = evosax_adapter.PREFIX if evosax else ""
-            name, colon, named = method[len(prefix):].partition(":")
-            rule = one_of("constraint", named if colon else constraint, CONSTRAINTS)
-            name = prefix + name
-            config = evosax_adapter.resolve(name) if evosax else pso.resolve(name)
-        else:
-            rule = one_of("constraint", constraint, CONSTRAINTS)
-            if isinstance(method, evosax_adapter.StrategyConfig):
-                config = method.validate()
-                name = evosax_adapter.PREFIX + config.strategy
-            else:
-                config, name = pso.resolve(method), custom_label
+        rule = one_of("constraint", fallback, CONSTRAINTS)
+        config = _config(method, method)
+        name = PREFIX + config.strategy if isinstance(config, StrategyConfig) else custom_label
         variant = Variant(name if rule == "death" else f"{name}:{rule}", config, rule)
-    evosax_adapter.check_constraint(variant.config, variant.constraint, variant.label)
-    return variant
-
-
-def search_variant(method, constraint: str | None) -> Variant:
-    """``parse_method`` for one search (``solve``, ``jaxarm solve``): ``constraint=None``
-    takes the rule the method names, else the death penalty; a method that names another rule
-    than ``constraint`` is a ValueError naming both."""
-    variant = parse_method(method, "death" if constraint is None else constraint)
-    if constraint is not None and variant.constraint != constraint:
-        raise ValueError(f"method {method!r} names constraint {variant.constraint!r} but "
+    if (isinstance(variant.config, StrategyConfig)
+            and rule not in evosax_adapter.STRATEGY_CONSTRAINTS):
+        raise ValueError(f"constraint of {variant.label} must be one of "
+                         f"{evosax_adapter.STRATEGY_CONSTRAINTS} (evosax strategies), "
+                         f"got {rule!r}")
+    if constraint is not None and rule != constraint:
+        raise ValueError(f"method {method!r} names constraint {rule!r} but "
                          f"constraint={constraint!r}: give the rule once")
     return variant
+
+
+def parse_methods(methods: Sequence, default_constraint: str) -> list[Variant]:
+    """A study's rows: ``parse_method`` of each entry (names, ``PSOConfig``s, ``StrategyConfig``s
+    or ``Variant``s; one of them alone is a list of one).
+
+    Entries that name no constraint get ``default_constraint``. A ``PSOConfig`` is labelled
+    "custom", the next ones "custom-2", "custom-3", ...; a ``Variant`` keeps its own label.
+    Labels must be unique.
+    """
+    if isinstance(methods, (str, PSOConfig, Variant, StrategyConfig)):
+        methods = [methods]  # one method, not its characters or fields
+    variants, n_custom = [], 0
+    for method in methods:
+        n_custom += isinstance(method, PSOConfig)
+        variant = parse_method(method, default_constraint=default_constraint,
+                               custom_label="custom" if n_custom <= 1 else f"custom-{n_custom}")
+        if any(v.label == variant.label for v in variants):
+            raise ValueError(f"methods must have unique labels, got {variant.label!r} twice")
+        variants.append(variant)
+    if not variants:
+        raise ValueError(f"methods must name at least one method, got {methods!r}")
+    return variants
+
+
+def _names_evosax(method: str) -> bool:
+    """Whether ``method`` names an evosax strategy; a name that means evosax without that
+    spelling ("evosax", "EvoSAX:CMA_ES") is a ValueError saying how to write it."""
+    if not method.startswith(PREFIX) and method.partition(":")[0].strip().lower() == PREFIX[:-1]:
+        raise ValueError(f"method {method!r}: an evosax strategy is named "
+                         f"{PREFIX}<Strategy>, such as {PREFIX}CMA_ES"
+                         + ("" if evosax_adapter.available() else f"; {evosax_adapter.MISSING}"))
+    return method.startswith(PREFIX)
+
+
+def _config(name, method) -> PSOConfig | StrategyConfig:
+    """The validated config that a name without its rule (or a config) stands for; ``method``
+    is what error messages quote."""
+    if isinstance(name, (PSOConfig, StrategyConfig)):
+        return name.validate()
+    if not isinstance(name, str):
+        raise ValueError(f"method must be a name or a PSOConfig, got {method!r}")
+    if name.startswith(PREFIX):
+        strategy = name[len(PREFIX):]
+        return StrategyConfig(evosax_adapter.ALIASES.get(strategy, strategy)).validate()
+    preset_name, bracket, fields = name.partition("[")
+    if preset_name in PSO_METHODS and bracket and not fields.endswith("]"):
+        raise ValueError(f"method {method!r}: the brackets must close at its end, as in "
+                         f"A-ring[inertia_end=0.4]")
+    if preset_name not in PSO_METHODS:
+        raise ValueError(f"method must be one of {PSO_METHODS}, optionally with fields in "
+                         f"brackets such as A-ring[inertia_end=0.4], or a PSOConfig, "
+                         f"got {method!r}")
+    preset, _, topology = preset_name.partition("-")
+    config = pso.PRESETS[preset]._replace(
+        topology=TOPOLOGY_SUFFIXES.get("-" + topology, "global"))
+    if bracket:
+        config = config._replace(**_fields_in_brackets(method, fields[:-1]))
+    return config.validate()
+
+
+def _fields_in_brackets(method: str, text: str) -> dict:
+    """``"inertia_end=0.4,topology=ring"`` as PSOConfig field values (numbers as floats)."""
+    changed = {}
+    for item in text.split(","):
+        field, equals, value = (part.strip() for part in item.partition("="))
+        if field not in PSOConfig._fields or not equals or not value:
+            raise ValueError(f"method {method!r}: each change in brackets must be FIELD=VALUE "
+                             f"with FIELD one of {PSOConfig._fields}, got {item!r}")
+        if field in changed:
+            raise ValueError(f"method {method!r}: {field} is changed twice")
+        if isinstance(PSOConfig._field_defaults[field], str):
+            changed[field] = value
+        elif field == "velocity_clamp" and value.lower() == "none":
+            changed[field] = None
+        else:
+            try:
+                changed[field] = float(value)
+            except ValueError:
+                raise ValueError(f"method {method!r}: {field} must be a number, "
+                                 f"got {value!r}") from None
+    return changed

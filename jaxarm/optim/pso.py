@@ -40,8 +40,9 @@ counts as -inf, so it never becomes a personal or global best.
 
 from __future__ import annotations
 
+import functools
 import math
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -50,14 +51,13 @@ import numpy as np
 from jaxarm._validate import representable
 from jaxarm.choices import (
     BETA_MODES,
-    PSO_METHODS,
     TIE_BREAKS,
     TOPOLOGIES,
-    TOPOLOGY_SUFFIXES,
     VELOCITY_RULES,
     one_of,
 )
 from jaxarm.optim import constraints
+from jaxarm.optim.base import Bar, MeasureFn, Optimizer, StepInfo, on_first_iteration
 from jaxarm.optim.constraints import Measured
 
 
@@ -169,59 +169,6 @@ PRESETS = {
 }
 
 
-def resolve(method: str | PSOConfig) -> PSOConfig:
-    """A preset name ("A", "B", "C"), one with another topology ("A-ring", "A-global-ring", ...),
-    either with fields changed in brackets ("A-ring[inertia_end=0.4]", any ``PSOConfig`` field,
-    comma-separated; ``velocity_clamp=none`` for no clamp), or a ``PSOConfig``, validated.
-
-    Examples:
-      >>> resolve("B-ring") == PRESETS["B"]._replace(topology="ring")
-      True
-      >>> resolve("A-ring[inertia_end=0.4]").inertia_end
-      0.4
-    """
-    if isinstance(method, PSOConfig):
-        return method.validate()
-    if not isinstance(method, str):
-        raise ValueError(f"method must be a name or a PSOConfig, got {method!r}")
-    name, bracket, fields = method.partition("[")
-    if name in PSO_METHODS and bracket and not fields.endswith("]"):
-        raise ValueError(f"method {method!r}: the brackets must close at its end, as in "
-                         f"A-ring[inertia_end=0.4]")
-    if name not in PSO_METHODS:
-        raise ValueError(f"method must be one of {PSO_METHODS}, optionally with fields in "
-                         f"brackets such as A-ring[inertia_end=0.4], or a PSOConfig, "
-                         f"got {method!r}")
-    preset, _, topology = name.partition("-")
-    config = PRESETS[preset]._replace(topology=TOPOLOGY_SUFFIXES.get("-" + topology, "global"))
-    if bracket:
-        config = config._replace(**_fields_in_brackets(method, fields[:-1]))
-    return config.validate()
-
-
-def _fields_in_brackets(method: str, text: str) -> dict:
-    """``"inertia_end=0.4,topology=ring"`` as PSOConfig field values (numbers as floats)."""
-    changed = {}
-    for item in text.split(","):
-        field, equals, value = (part.strip() for part in item.partition("="))
-        if field not in PSOConfig._fields or not equals or not value:
-            raise ValueError(f"method {method!r}: each change in brackets must be FIELD=VALUE "
-                             f"with FIELD one of {PSOConfig._fields}, got {item!r}")
-        if field in changed:
-            raise ValueError(f"method {method!r}: {field} is changed twice")
-        if isinstance(PSOConfig._field_defaults[field], str):
-            changed[field] = value
-        elif field == "velocity_clamp" and value.lower() == "none":
-            changed[field] = None
-        else:
-            try:
-                changed[field] = float(value)
-            except ValueError:
-                raise ValueError(f"method {method!r}: {field} must be a number, "
-                                 f"got {value!r}") from None
-    return changed
-
-
 class SwarmState(NamedTuple):
     """A swarm between two updates."""
 
@@ -232,79 +179,26 @@ class SwarmState(NamedTuple):
     best_score: jax.Array  # shape=(n_particles,), their scores under the rule of this update
     global_index: jax.Array  # shape=(), int32: particle whose personal best is the global best
     iteration: jax.Array  # shape=(), int32: updates done so far (0: the initial swarm)
-    escape_iter: jax.Array  # shape=(), int32: first iteration with a feasible particle, or -1
-    rule: constraints.RuleState  # what an adaptive constraint rule remembers
+    constraint_state: constraints.ConstraintState  # what an adaptive constraint rule remembers
     tie_key: jax.Array  # the key that breaks ties for the global best when ``position`` is told
 
 
-class StepInfo(NamedTuple):
-    """Per-iteration diagnostics (not part of the state): what a restart loop records."""
+class _Setting(NamedTuple):
+    """What every function of one swarm reads (``swarm``'s arguments)."""
 
-    global_position: jax.Array  # shape=(n_dims,), the global best
-    global_fitness: jax.Array  # shape=(), its fitness
-    global_violation: jax.Array  # shape=(), its reported violation (0 iff feasible)
-    global_score: jax.Array  # shape=(), its score
-    n_feasible: jax.Array  # shape=(), int32: particles measured feasible at this iteration
-    #   (a path left unmeasured because it could not change the state, ``Swarm.bar``, is not)
-
-
-MeasureFn = Callable[[jax.Array], Measured]
-
-
-class Bar(NamedTuple):
-    """What a particle's next path must do to change the swarm's state (``Swarm.bar``), each
-    field of shape (n_particles,)."""
-
-    objective: jax.Array  # exceed this objective (a path that does not changes nothing)
-    free_only: jax.Array  # bool: only a free path can change it (a colliding one's violation
-    #   does not matter)
-
-
-class Swarm(NamedTuple):
-    """An optimiser as pure ask-and-tell functions, and the measurement its paths get.
-
-    - ``start(key) -> (state, x)``: the paths of iteration 0, and a state awaiting them;
-    - ``tell(state, x, measured, iteration) -> (state, info)``: what ``measure(x)`` found at
-      ``iteration`` (0: the initial paths; the loop's counter, the same for every restart, so
-      a branch on it runs one side only under ``vmap``);
-    - ``ask(key, state) -> (state, x)``: the next paths;
-    - ``measure``: paths (n, n_dims) -> ``Measured``;
-    - ``bar`` (optional): ``bar(state) -> Bar``: per particle, the objective its next path
-      must exceed to change the state, and whether only a free path can. A restart loop given a
-      measurement that accepts it (``restarts.run_restarts_of``) may leave the other paths
-      unproved, and stop proving a path that can only matter if free once it is found not to
-      be: the certified check's proofs are most of a certified search. None: every path may
-      change the state (evosax's strategies rank them all).
-
-    ``restarts.run_restarts_of`` runs any optimiser given this way and calls ``measure`` at one
-    place, so a compiled search holds one copy of the problem's check: the certified check
-    is most of a search program, and three copies (initial swarm, update, final best) nearly
-    doubled its compile time (``benchmarks/RESULTS.md``, *Decisions and negative results*,
-    "One copy of the check per program ..."). ``init`` and ``step`` do one iteration, for
-    stepping by hand.
-    """
-
-    start: Callable
-    tell: Callable
-    ask: Callable
-    measure: MeasureFn
-    bar: Callable | None = None
-
-    def init(self, key) -> tuple:
-        """Iteration 0, measured: ``(state, info)``."""
-        state, x = self.start(key)
-        return self.tell(state, x, self.measure(x), 0)
-
-    def step(self, key, state, iteration) -> tuple:
-        """Iteration ``iteration`` (>= 1), measured: ``(state, info)``."""
-        state, x = self.ask(key, state)
-        return self.tell(state, x, self.measure(x), iteration)
+    params: PSOParams
+    rules: SwarmRules
+    low: jax.Array  # shape=(1, n_dims): rows, like positions
+    high: jax.Array  # shape=(1, n_dims)
+    n_particles: int
+    n_iters: int
+    constraint: object  # a name from ``CONSTRAINTS`` or its index (may be traced)
 
 
 def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high, *,
           n_particles: int, n_iters: int, init_particles=None, n_given=None,
-          constraint="death") -> Swarm:
-    """PSO over the box [low, high] as a ``Swarm`` (paper eqs. 13-16).
+          constraint="death") -> Optimizer:
+    """PSO over the box [low, high] as an ``Optimizer`` (paper eqs. 13-16).
 
     Args:
       params: ``PSOConfig.params()`` (traced).
@@ -321,7 +215,7 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
       constraint: a name from ``CONSTRAINTS`` or its index (may be traced).
 
     Returns:
-      ``Swarm``; ``start`` draws iteration 0, each ``ask`` one synchronous update.
+      ``Optimizer``; ``init`` draws iteration 0, each ``ask`` one synchronous update.
 
     Examples:
       >>> def sphere(x):
@@ -329,125 +223,126 @@ def swarm(params: PSOParams, rules: SwarmRules, measure_fn: MeasureFn, low, high
       ...     violation = jnp.where(x[:, 0] > 0, 0.0, 1.0)
       ...     return Measured(value, value, violation, violation)
       >>> config = PRESETS["A"]
-      >>> pair = swarm(config.params(), config.rules(), sphere, -jnp.ones(2), jnp.ones(2),
-      ...              n_particles=5, n_iters=10)
-      >>> state, info = pair.init(jax.random.key(0))
-      >>> state, info = pair.step(jax.random.key(1), state, 1)
+      >>> pso = swarm(config.params(), config.rules(), sphere, -jnp.ones(2), jnp.ones(2),
+      ...             n_particles=5, n_iters=10)
+      >>> state, info = pso.begin(jax.random.key(0))
+      >>> state, info = pso.step(jax.random.key(1), state, 1)
       >>> int(state.iteration)
       1
     """
-    low, high = jnp.reshape(low, (1, -1)), jnp.reshape(high, (1, -1))  # rows, like positions
-
-    def scores(rule_state, measured, iteration):
-        return constraints.score(constraint, rule_state, measured, iteration, n_iters)
-
-    def start(key) -> tuple[SwarmState, jax.Array]:
-        position_key, velocity_key, tie_key = jax.random.split(key, 3)
-        span = high - low
-        position = low + span * jax.random.uniform(position_key, (n_particles, low.shape[-1]),
-                                                   dtype=low.dtype)
-        if init_particles is not None:
-            count = init_particles.shape[0] if n_given is None else n_given
-            given = jnp.zeros_like(position).at[: init_particles.shape[0]].set(
-                init_particles.astype(low.dtype))
-            position = jnp.where(jnp.arange(n_particles)[:, None] < count, given, position)
-        velocity = params.init_velocity * span * jax.random.uniform(
-            velocity_key, position.shape, dtype=low.dtype, minval=-1.0, maxval=1.0
-        )
-        zeros = jnp.zeros(n_particles, low.dtype)
-        scalar = jnp.zeros((), low.dtype)
-        state = SwarmState(  # nothing measured yet: ``tell`` replaces every best
-            position=position,
-            velocity=velocity,
-            best_position=position,
-            best=Measured(zeros, zeros, zeros, zeros),
-            best_score=zeros,
-            global_index=jnp.zeros((), jnp.int32),
-            iteration=jnp.zeros((), jnp.int32),
-            escape_iter=jnp.full((), -1, jnp.int32),
-            rule=constraints.RuleState(scalar, scalar, scalar),
-            tie_key=tie_key,
-        )
-        return state, position
-
-    def ask(key, state: SwarmState) -> tuple[SwarmState, jax.Array]:
-        beta_key, tie_key = jax.random.split(key)
-        shape = state.position.shape
-        beta_shape = shape if rules.beta == "dimension" else shape[:1] + (1,)
-        beta1, beta2 = jax.random.uniform(beta_key, (2,) + beta_shape, dtype=state.position.dtype)
-        iteration = state.iteration + 1
-        omega = (params.inertia_start
-                 + (params.inertia_end - params.inertia_start) * iteration / n_iters)
-        social = _social_attractor(state, iteration > params.ring_from * n_iters)
-        velocity = params.constriction * (
-            omega * state.velocity
-            + params.cognitive_coeff * beta1 * (state.best_position - state.position)
-            + params.social_coeff * beta2 * (social - state.position)
-        )
-        limit = params.velocity_clamp * (high - low)
-        velocity = jnp.clip(velocity, -limit, limit).astype(state.position.dtype)
-        position = state.position + velocity
-        return state._replace(position=position, velocity=velocity, iteration=iteration,
-                              tie_key=tie_key), position
-
-    def tell(state: SwarmState, x, measured: Measured, iteration) -> tuple[SwarmState, StepInfo]:
-        first = iteration == 0  # the initial swarm: its positions are its bests
-        rule = on_first_iteration(iteration, lambda: constraints.initial_state(measured),
-                                  lambda: state.rule)
-        # new positions and personal bests compared under the rule of this update
-        score = scores(rule, measured, iteration)
-        old_score = scores(rule, state.best, iteration)
-        improved = first | (score > old_score)
-        best_score = jnp.where(improved, score, old_score)
-        best = jax.tree.map(lambda new, old: jnp.where(improved, new, old), measured,
-                            state.best)
-        feasible = measured.ranked_violation == 0
-        escaped_now = (state.escape_iter < 0) & feasible.any()
-        global_index = _choose_global(state.tie_key, best_score, rules.tie_break)
-        updated = constraints.updated_state(rule, best.ranked_violation[global_index] == 0)
-        new_state = state._replace(
-            position=x,
-            best_position=jnp.where(improved[:, None], x, state.best_position),
-            best=best,
-            best_score=best_score,
-            global_index=global_index,
-            escape_iter=jnp.where(escaped_now, iteration, state.escape_iter),
-            rule=jax.tree.map(lambda kept, new: jnp.where(first, kept, new), rule, updated),
-        )
-        return new_state, _info(new_state, feasible)
-
-    def bar(state: SwarmState) -> Bar:
-        # A path changes the state only by beating its particle's personal best. Under every
-        # rule a path scores at most its objective, and a feasible one scores its objective
-        # (its fitness under the death penalty and feasibility rules, the same number), so
-        # against a feasible personal best (ranked violation 0: obstacles and joint limits) a
-        # path needs a higher objective. Iteration 0 replaces every best.
-        later = state.iteration > 0
-        feasible = (state.best.ranked_violation == 0) & later
-        # A colliding path's violation matters only to rules that compare it with the best's:
-        # not to the death penalty (every colliding path scores 0, no more than any best
-        # after iteration 0), nor to feasibility rules against a feasible best.
-        rule = constraints.rule_index(constraint)
-        free_only = later & ((rule == constraints.constraint_index("death"))
-                             | ((rule == constraints.constraint_index("feasibility")) & feasible))
-        return Bar(objective=jnp.where(feasible, jnp.minimum(state.best.objective,
-                                                             state.best.fitness), -jnp.inf),
-                   free_only=free_only)
-
-    return Swarm(start=start, tell=tell, ask=ask, measure=measure_fn, bar=bar)
+    setting = _Setting(params, rules, jnp.reshape(low, (1, -1)), jnp.reshape(high, (1, -1)),
+                       n_particles, n_iters, constraint)
+    return Optimizer(init=functools.partial(_init, setting, init_particles, n_given),
+                     tell=functools.partial(_tell, setting),
+                     ask=functools.partial(_ask, setting), measure=measure_fn,
+                     bar=functools.partial(_bar, setting))
 
 
-def on_first_iteration(iteration, first: Callable, later: Callable):
-    """``first()`` at iteration 0, else ``later()``.
+def _init(setting: _Setting, init_particles, n_given, key) -> tuple[SwarmState, jax.Array]:
+    """Iteration 0's positions (uniform in the box, the given particles first) and velocities."""
+    low, high, n_particles = setting.low, setting.high, setting.n_particles
+    position_key, velocity_key, tie_key = jax.random.split(key, 3)
+    span = high - low
+    position = low + span * jax.random.uniform(position_key, (n_particles, low.shape[-1]),
+                                               dtype=low.dtype)
+    if init_particles is not None:
+        count = init_particles.shape[0] if n_given is None else n_given
+        given = jnp.zeros_like(position).at[: init_particles.shape[0]].set(
+            init_particles.astype(low.dtype))
+        position = jnp.where(jnp.arange(n_particles)[:, None] < count, given, position)
+    velocity = setting.params.init_velocity * span * jax.random.uniform(
+        velocity_key, position.shape, dtype=low.dtype, minval=-1.0, maxval=1.0
+    )
+    zeros = jnp.zeros(n_particles, low.dtype)
+    scalar = jnp.zeros((), low.dtype)
+    state = SwarmState(  # nothing measured yet: ``tell`` replaces every best
+        position=position,
+        velocity=velocity,
+        best_position=position,
+        best=Measured(zeros, zeros, zeros, zeros),
+        best_score=zeros,
+        global_index=jnp.zeros((), jnp.int32),
+        iteration=jnp.zeros((), jnp.int32),
+        constraint_state=constraints.ConstraintState(scalar, scalar, scalar),
+        tie_key=tie_key,
+    )
+    return state, position
 
-    A Python choice for a concrete iteration (stepping by hand), else ``lax.cond``: the loop's
-    counter is the same for every restart, so only one side runs (computing the initial rule
-    state at every update, as a select would, made a sampled search slower:
-    ``benchmarks/pso_speed.py``).
-    """
-    if isinstance(iteration, int):
-        return first() if iteration == 0 else later()
-    return jax.lax.cond(iteration == 0, first, later)
+
+def _ask(setting: _Setting, key, state: SwarmState) -> tuple[SwarmState, jax.Array]:
+    """One synchronous update of every particle's velocity and position (eqs. 13-16)."""
+    params, n_iters = setting.params, setting.n_iters
+    beta_key, tie_key = jax.random.split(key)
+    shape = state.position.shape
+    beta_shape = shape if setting.rules.beta == "dimension" else shape[:1] + (1,)
+    beta1, beta2 = jax.random.uniform(beta_key, (2,) + beta_shape, dtype=state.position.dtype)
+    iteration = state.iteration + 1
+    omega = (params.inertia_start
+             + (params.inertia_end - params.inertia_start) * iteration / n_iters)
+    social = _social_attractor(state, iteration > params.ring_from * n_iters)
+    velocity = params.constriction * (
+        omega * state.velocity
+        + params.cognitive_coeff * beta1 * (state.best_position - state.position)
+        + params.social_coeff * beta2 * (social - state.position)
+    )
+    limit = params.velocity_clamp * (setting.high - setting.low)
+    velocity = jnp.clip(velocity, -limit, limit).astype(state.position.dtype)
+    position = state.position + velocity
+    return state._replace(position=position, velocity=velocity, iteration=iteration,
+                          tie_key=tie_key), position
+
+
+def _tell(setting: _Setting, state: SwarmState, x, measured: Measured,
+          iteration) -> tuple[SwarmState, StepInfo]:
+    """Personal and global bests after the paths ``x`` measured ``measured``."""
+    first = iteration == 0  # the initial swarm: its positions are its bests
+    constraint_state = on_first_iteration(
+        iteration, lambda: constraints.initial_state(measured), lambda: state.constraint_state)
+    # new positions and personal bests compared under the rule of this update
+    score = constraints.score(setting.constraint, constraint_state, measured, iteration,
+                              setting.n_iters)
+    old_score = constraints.score(setting.constraint, constraint_state, state.best, iteration,
+                                  setting.n_iters)
+    improved = first | (score > old_score)
+    best_score = jnp.where(improved, score, old_score)
+    best = jax.tree.map(lambda new, old: jnp.where(improved, new, old), measured,
+                        state.best)
+    feasible = measured.ranked_violation == 0
+    global_index = _choose_global(state.tie_key, best_score, setting.rules.tie_break)
+    updated = constraints.updated_state(constraint_state,
+                                        best.ranked_violation[global_index] == 0)
+    new_state = state._replace(
+        position=x,
+        best_position=jnp.where(improved[:, None], x, state.best_position),
+        best=best,
+        best_score=best_score,
+        global_index=global_index,
+        constraint_state=jax.tree.map(lambda kept, new: jnp.where(first, kept, new),
+                                      constraint_state, updated),
+    )
+    return new_state, _info(new_state, feasible)
+
+
+def _bar(setting: _Setting, state: SwarmState) -> Bar:
+    """Per particle, the objective its next path must exceed to change the state, and whether
+    only a free path can."""
+    # A path changes the state only by beating its particle's personal best. Under every
+    # rule a path scores at most its objective, and a feasible one scores its objective
+    # (its fitness under the death penalty and feasibility rules, the same number), so
+    # against a feasible personal best (ranked violation 0: obstacles and joint limits) a
+    # path needs a higher objective. Iteration 0 replaces every best.
+    later = state.iteration > 0
+    feasible = (state.best.ranked_violation == 0) & later
+    # A colliding path's violation matters only to rules that compare it with the best's:
+    # not to the death penalty (every colliding path scores 0, no more than any best
+    # after iteration 0), nor to feasibility rules against a feasible best.
+    constraint = constraints.constraint_index(setting.constraint)
+    free_only = later & ((constraint == constraints.constraint_index("death"))
+                         | ((constraint == constraints.constraint_index("feasibility"))
+                            & feasible))
+    return Bar(objective=jnp.where(feasible, jnp.minimum(state.best.objective,
+                                                         state.best.fitness), -jnp.inf),
+               free_only=free_only)
 
 
 def _social_attractor(state: SwarmState, ring) -> jax.Array:

@@ -26,8 +26,7 @@ import optax
 
 from jaxarm._compile.jit import jit
 from jaxarm._compile.padding import on_padded_rows
-from jaxarm.checks import collision as collision_lib
-from jaxarm.checks.evaluate import vmapped_evaluate
+from jaxarm.checks.evaluate import link_clearances, vmapped_evaluate
 from jaxarm.model import path
 from jaxarm.model.arm import link_endpoints
 from jaxarm.model.problem import Problem, as_params
@@ -117,7 +116,7 @@ def _surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin, tem
     else:
         links = jax.lax.cond(needed, lambda a: link_endpoints(arrays.lengths, a),
                              lambda a: [(jnp.zeros_like(a[0]),) * 4] * len(a), angle)
-    bounds = collision_lib.link_clearance_bounds(arrays.world, links)
+    bounds = link_clearances(arrays.world, links)
     barrier = sum(temperature * jax.nn.softplus((margin - c) / temperature) for c in bounds)
     return distance + barrier_weight * _sum_over_samples(barrier) / spec.n_samples
 

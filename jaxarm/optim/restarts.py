@@ -8,8 +8,8 @@ specialised only on sizes and modes (``ProblemSpec``, particles, iterations, res
 swarm's rules); angles, obstacles, PSO coefficients, the constraint rule, the init range and the
 seed are data, so a new scenario or preset reuses it.
 
-``run_restarts_of`` knows nothing about PSO: any optimiser given as a ``pso.Swarm`` (ask and tell
-functions and the measurement) whose info is a ``pso.StepInfo`` runs in the same loop.
+``run_restarts_of`` knows nothing about PSO: any optimiser given as a ``base.Optimizer`` (ask
+and tell functions and the measurement) runs in the same loop.
 """
 
 from __future__ import annotations
@@ -22,10 +22,10 @@ import numpy as np
 
 from jaxarm._compile.jit import jit
 from jaxarm._compile.padding import round_up
-from jaxarm.checks import certified
-from jaxarm.checks.evaluate import vmapped_evaluate
+from jaxarm.checks.evaluate import ProofRequest, compiles_best_at_default_level, vmapped_evaluate
 from jaxarm.model.problem import Problem, ProblemArrays, ProblemSpec
 from jaxarm.optim import constraints, evosax_adapter, pso
+from jaxarm.optim.base import Optimizer, StepInfo
 from jaxarm.optim.constraints import constraint_index
 
 N_PARTICLES = 20  # the swarm size solve and escape_study use unless told
@@ -56,56 +56,52 @@ class RestartOutcome(NamedTuple):
         return RestartOutcome(*(np.concatenate(parts) for parts in zip(self, *others)))
 
 
-def run_restart(key, swarm: pso.Swarm, n_iters: int) -> RestartOutcome:
-    """One restart (``run_restarts_of`` with one key): fields without the leading axis."""
-    return jax.tree.map(lambda a: a[0], run_restarts_of(key[None], swarm, n_iters))
-
-
-def run_restarts_of(keys, swarm: pso.Swarm, n_iters: int, measure_above=None) -> RestartOutcome:
+def run_restarts_of(keys, optimizer: Optimizer, n_iters: int,
+                    measure_above=None) -> RestartOutcome:
     """Restarts, one per key: iteration 0 then ``n_iters`` updates, tracking escape and the
     best fitness.
 
-    The loop runs on all restarts at once, the swarm's functions mapped over them (a ``vmap``
-    of a one-restart loop gave the same bits but traced the loop's body twice more, in JAX's
-    scan batching rule). The swarm's paths are measured at one place (in the loop's body), so
-    a compiled program holds one copy of the measurement.
+    The loop runs on all restarts at once, the optimiser's functions mapped over them (a
+    ``vmap`` of a one-restart loop gave the same bits but traced the loop's body twice more, in
+    JAX's scan batching rule). The paths are measured at one place (in the loop's body), so a
+    compiled program holds one copy of the measurement.
 
     Args:
       keys: one key per restart, shape (n_restarts,) (or raw uint32 keys, (n_restarts, 2));
-        a restart's ``start`` gets ``fold_in(key, 0)``, the ask of update t
+        a restart's ``init`` gets ``fold_in(key, 0)``, the ask of update t
         ``fold_in(key, t)``.
-      swarm: the optimiser (its functions see one restart).
+      optimizer: the optimiser (its functions see one restart).
       n_iters: updates (static).
-      measure_above: optionally ``(x, bar) -> Measured``, called in place of ``swarm.measure``
-        with ``swarm.bar(state)`` (a ``pso.Bar``, when the swarm has one), once for all the
-        restarts (x of shape (n_restarts, n, n_free), the bar's fields and the result's
-        (n_restarts, n)): it must measure as ``swarm.measure`` does every path whose objective
-        exceeds its particle's bar (where ``bar.free_only``, at least whether the path is
-        free, and some positive violation if not), and may leave the others unproved
-        (violation inf); the loop returns the same.
+      measure_above: optionally ``(x, bar) -> Measured``, called in place of
+        ``optimizer.measure`` with ``optimizer.bar(state)`` (a ``base.Bar``, when the optimiser
+        has one), once for all the restarts (x of shape (n_restarts, n, n_free), the bar's
+        fields and the result's (n_restarts, n)): it must measure as ``optimizer.measure``
+        does every path whose objective exceeds its particle's bar (where ``bar.free_only``, at
+        least whether the path is free, and some positive violation if not), and may leave the
+        others unproved (violation inf); the loop returns the same.
 
     Returns:
-      ``RestartOutcome``: best_x (n_restarts, n_free), its fitness and violation as the swarm
-      measured them (n_restarts,), escape_iter (n_restarts,), escape_x (n_restarts, n_free),
-      history (n_restarts, n_iters + 1).
+      ``RestartOutcome``: best_x (n_restarts, n_free), its fitness and violation as the
+      optimiser measured them (n_restarts,), escape_iter (n_restarts,), escape_x (n_restarts,
+      n_free), history (n_restarts, n_iters + 1).
     """
-    start, ask = jax.vmap(swarm.start), jax.vmap(swarm.ask)
-    if measure_above is None or swarm.bar is None:
-        measure_all = jax.vmap(swarm.measure)
+    init, ask = jax.vmap(optimizer.init), jax.vmap(optimizer.ask)
+    if measure_above is None or optimizer.bar is None:
+        measure_all = jax.vmap(optimizer.measure)
         measure = lambda x, state: measure_all(x)  # noqa: E731
     else:
         # Not a ``vmap`` of a one-restart measurement: its batching rule folds the restarts
         # into one batch too, but JAX traces the check once more for the rule.
-        bar = jax.vmap(swarm.bar)
+        bar = jax.vmap(optimizer.bar)
         measure = lambda x, state: measure_above(x, bar(state))  # noqa: E731
-    tell = jax.vmap(swarm.tell, in_axes=(0, 0, 0, None))
+    tell = jax.vmap(optimizer.tell, in_axes=(0, 0, 0, None))
     keys_at = jax.vmap(jax.random.fold_in, in_axes=(0, None))
-    state, x = start(keys_at(keys, 0))
+    state, x = init(keys_at(keys, 0))
     batch = x.shape[:1]  # (n_restarts,): typed keys or raw uint32 ones (n_restarts, 2)
     zero = jnp.zeros(batch, x.dtype)
     nan = jnp.full(batch + x.shape[-1:], jnp.nan, x.dtype)
-    nothing_yet = pso.StepInfo(global_position=nan, global_fitness=zero, global_violation=zero,
-                               global_score=zero, n_feasible=jnp.zeros(batch, jnp.int32))
+    nothing_yet = StepInfo(global_position=nan, global_fitness=zero, global_violation=zero,
+                           global_score=zero, n_feasible=jnp.zeros(batch, jnp.int32))
 
     def body(carry, iteration):
         state, x, _, escape_iter, escape_x = carry
@@ -140,7 +136,7 @@ class SearchData(NamedTuple):
 
 def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOParams,
                     rules: pso.SwarmRules, data: SearchData, *, n_particles: int,
-                    n_iters: int) -> RestartOutcome:
+                    n_iters: int, xla_default_level: bool = False) -> RestartOutcome:
     """Run the PSO restarts numbered ``data.restart_ids`` (pure; ``compiled_search`` is its
     jit).
 
@@ -150,6 +146,8 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
         ``evosax_adapter.StrategyConfig``'s (``rules`` is then the config itself).
       data: ``SearchData``.
       n_particles, n_iters: static sizes.
+      xla_default_level: static, read by ``compiled_search`` only: compile at XLA's default
+        optimisation level (``checks.evaluate.compiles_best_at_default_level``).
 
     Returns:
       ``RestartOutcome`` with leading axis n_restarts.
@@ -157,43 +155,39 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
     low, high, seed, restart_ids, init_particles, n_given, constraint = data
     measure = path_measurement(spec, arrays)
     if isinstance(rules, evosax_adapter.StrategyConfig):  # "evosax:<Strategy>"
-        swarm = evosax_adapter.strategy_swarm(rules, measure, low, high, n_particles=n_particles,
-                                         constraint=constraint)
+        optimizer = evosax_adapter.strategy_swarm(rules, measure, low, high,
+                                                  n_particles=n_particles, constraint=constraint)
     else:
-        swarm = pso.swarm(params, rules, measure, low, high, n_particles=n_particles,
-                          n_iters=n_iters, init_particles=init_particles, n_given=n_given,
-                          constraint=constraint)
+        optimizer = pso.swarm(params, rules, measure, low, high, n_particles=n_particles,
+                              n_iters=n_iters, init_particles=init_particles, n_given=n_given,
+                              constraint=constraint)
 
     keys = jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.key(seed), restart_ids)
-    return run_restarts_of(keys, swarm, n_iters, measure_above=measure)
+    return run_restarts_of(keys, optimizer, n_iters, measure_above=measure)
 
 
 def path_measurement(spec: ProblemSpec, arrays: ProblemArrays):
     """What a search measures of its paths: ``(x, bar=None) -> constraints.Measured`` for x of
     shape (..., n, n_free) (one restart's paths, or every restart's at once: one batch, also
-    under ``jax.vmap``); ``bar`` (a ``pso.Bar``) lets the certified check skip what cannot
-    change the swarm (``checks.evaluate.evaluate``)."""
+    under ``jax.vmap``); ``bar`` (a ``base.Bar``, the optimiser's) becomes the certified
+    check's ``ProofRequest``, so that it skips what cannot change the optimiser's state
+    (``checks.evaluate.evaluate``)."""
     evaluate = vmapped_evaluate(spec)
 
     def measure(x, bar=None):
-        evaluation = evaluate(arrays, x, bar)
+        request = None if bar is None else ProofRequest(objective_above=bar.objective,
+                                                        free_only=bar.free_only)
+        evaluation = evaluate(arrays, x, request)
         return constraints.path_measures(evaluation.fitness, evaluation.violation,
                                          evaluation.distance)
 
     return measure
 
 
-def _screens_windows(spec: ProblemSpec, **_) -> bool:
-    """Whether a search's check is the certified one screening its windows
-    (``certified.screens_windows``: a world with polygons), which runs faster at XLA's default
-    optimisation level, with the same results (``benchmarks/RESULTS.md``, "The certified search
-    at XLA's default optimisation level"): ``compiled_search`` compiles those programs there."""
-    return spec.collision == "certified" and certified.screens_windows(spec)
-
-
 compiled_search = jit(
-    search_restarts, static_argnames=("spec", "rules", "n_particles", "n_iters"), storable=True,
-    default_level_when=_screens_windows,
+    search_restarts, static_argnames=("spec", "rules", "n_particles", "n_iters",
+                                      "xla_default_level"),
+    storable=True, level_flag="xla_default_level",
 )
 
 
@@ -267,6 +261,7 @@ def run_restarts(problem: Problem, config: pso.PSOConfig | evosax_adapter.Strate
     data = SearchData(low, high, np.int32(seed), restart_ids(first_restart, n_restarts), given,
                       np.int32(n_given), np.int32(constraint_index(constraint)))
     outcome = compiled_search(problem.spec, problem.arrays, config.params(), config.rules(),
-                              data, n_particles=n_particles, n_iters=n_iters)
+                              data, n_particles=n_particles, n_iters=n_iters,
+                              xla_default_level=compiles_best_at_default_level(problem.spec))
     _RUN_PROGRAMS.add(_program_key(problem, config, n_particles, n_iters, n_restarts))
     return RestartOutcome(*(to_host(a)[:n_restarts] for a in outcome))

@@ -32,6 +32,7 @@ from jaxarm.io import scenario_files
 from jaxarm.io.files import output_folder, written
 from jaxarm.model.problem import share_capacities
 from jaxarm.optim import evosax_adapter
+from jaxarm.optim.methods import parse_method
 from jaxarm.optim.refine import refine
 from jaxarm.optim.restarts import N_ITERS, N_PARTICLES, run_restarts
 from jaxarm.paper import published, reconstruct
@@ -822,7 +823,7 @@ def compare_degrees_and_refine(problems, degrees=(6, 7, 8), n_restarts: int = 10
     the same after refining every feasible restart, and wall times (compilation included).
     """
     def restarts(problem, constraint):  # solve's restarts, without certifying its answer
-        return run_restarts(problem, evosax_adapter.resolve_method("A"), constraint,
+        return run_restarts(problem, parse_method("A").config, constraint,
                             n_particles=N_PARTICLES, n_iters=N_ITERS, seed=seed,
                             first_restart=0, n_restarts=n_restarts)
 
