@@ -13,13 +13,15 @@ Layout. Data flows one way, scenario file -> ``Problem`` -> checks -> optimiser 
 study, plot, report, CLI, and each layer imports only the ones before it:
 
 - ``jaxarm._compile``: how programs are compiled (``jit``, stored programs, the persistent
-  cache, batch padding). It knows nothing of arms.
+  cache, batch padding). It imports nothing else of jaxarm and knows nothing of arms.
 - ``jaxarm.model``: the arm, the obstacle world, the polynomial paths, dynamics and the
   ``Problem`` that binds them. No collision check, no optimiser.
 - ``jaxarm.checks``: what a path scores: the sampled and certified collision checks, joint
   limits, and ``fitness`` / ``violation`` / ``certify`` over any batch.
-- ``jaxarm.optim``: the method grammar, PSO, the constraint rules, the compiled restart loop,
-  the evosax adapter and gradient ``refine``. They see a problem only through ``evaluate``.
+- ``jaxarm.optim``: the optimiser protocol (``optim.base``: ``init``, ``ask``, ``tell``), PSO
+  and the evosax adapter that implement it, the constraint rules, the compiled restart loop
+  that runs it, the method grammar and its one parser (``optim.methods``), and gradient
+  ``refine``. They see a problem only through ``jaxarm.checks.evaluate``.
 - Top level: what users call: ``solve`` (``search``), ``escape_study`` (``study``),
   ``stats``, ``feasible_fraction``, ``Trajectory``, ``plot``, ``cli``.
 - ``jaxarm.io`` (scenario files, saved runs) and ``jaxarm.paper`` (the paper's numbers, the

@@ -48,8 +48,9 @@ def surrogate(spec, arrays, x, barrier_weight, margin, temperature):
     The barrier reads each link's clearance bound (``collision.posture_clearance_bound``: exact
     for circles, the separating-axis gap for polygons) at every sample. All samples are
     computed at once, as (..., n_samples) arrays: refine's batches are small, and the gradient
-    of a ``lax.scan`` over the samples (``path.run_fold``) made refine 3-12 times slower
-    (``benchmarks/RESULTS.md``).
+    of a ``lax.scan`` over the samples (``path.run_fold``) made refine slower
+    (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Refine takes all samples at
+    once, in power-of-two batches").
     """
     angle, rate = _angles_and_rates(arrays, x, _sample_bases(spec, x.dtype))
     return _surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin, temperature)
@@ -135,8 +136,9 @@ def _refine_rows(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, te
 
     The loop runs on the whole batch: only the optimizer is mapped over the rows (so that one
     with a norm or other reduction sees one row's parameters). A ``vmap`` of a one-row loop
-    gave the same bits but traced the loop's body twice more (JAX's scan batching rule), and
-    tracing took about as long as compiling (``benchmarks/RESULTS.md``).
+    gave the same bits but traced the loop's body twice more (JAX's scan batching rule)
+    (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Loops traced once: refine
+    and the restarts").
     """
     optimizer = DEFAULT_OPTIMIZER if optimizer is None else optimizer
     update = jax.vmap(optimizer.update)
