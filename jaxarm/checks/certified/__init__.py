@@ -57,7 +57,7 @@ class CheckSizes(NamedTuple):
     pair_chunk: int = 4096  # ... and windows per call of its drift test (with polygons)
     lanes: int = 1024  # paths bisected at once (the wide loop) ...
     few_lanes: int = 64  # ... or this many (the narrow loop) when at most few_paths need it
-    few_paths: int | None = None  # None: FEW_PATHS_CPU on CPU, else FEW_PATHS; -1: never
+    few_paths: int | None = None  # None: FEW_PATHS_CPU on CPU, else FEW_PATHS (-1: no narrow)
 
     def narrow_limit(self) -> int:
         """The most paths to bisect that still get the narrow loop: ``few_paths``, or by
