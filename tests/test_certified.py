@@ -10,6 +10,7 @@ import jaxarm
 from jaxarm._compile.jit import jit
 from jaxarm._compile.padding import SMALL_BATCH
 from jaxarm.checks import certified
+from jaxarm.checks.certified import bits, samples, windows
 from jaxarm.checks.evaluate import _evaluate_and_certify
 from jaxarm.paper import published
 from jaxarm.paper.published import a6_array
@@ -133,7 +134,7 @@ def test_small_certify_batches_share_one_program_and_agree_with_a_large_one(rng)
 
 
 @pytest.mark.parametrize("scene", ["thin-wall", "paper-case-1"])
-def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch, scene):
+def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, scene):
     """The window pass over the paths without a witness at a sample, in chunks, and the
     bisection in either of its loops, give every path the same verdict as one chunk and the
     narrow loop. Thin-wall (a polygon) runs the screened pass, its random paths several chunks
@@ -147,20 +148,19 @@ def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch, 
         near = a6_array(published.CASE_1)[rng.integers(0, len(published.CASE_1), 200)]
         x = (near + rng.normal(0.0, 0.3, near.shape)).astype(np.float32)
     arrays = problem.arrays
-    # One chunk and one narrow loop: 200 paths (padded to 256) < WINDOW_CHUNK, at most
-    # ``_few_paths()``: only the narrow loop is compiled (thin-wall: the one program of the
-    # dense check and of the test above).
+    # One chunk and one narrow loop: 200 paths (padded to 256) < the default window_chunk, at
+    # most ``CheckSizes.narrow_limit()``: only the narrow loop is compiled (thin-wall: the one
+    # program of the dense check and of the test above).
     one_chunk_narrow = jaxarm.certify(problem, x)._asdict()
     one_chunk_narrow["violation"] = jaxarm.violation(problem, x)
     lanes = 16
-    monkeypatch.setattr(certified, "WINDOW_CHUNK", 16)
-    monkeypatch.setattr(certified, "SWING_CHUNK", 16)
-    monkeypatch.setattr(certified, "PAIR_CHUNK", 16)
-    monkeypatch.setattr(certified, "LANES", lanes)  # the other loop, refilling its lanes
-    monkeypatch.setattr(certified, "_few_paths", lambda: -1)  # always the other loop
+    sizes = certified.CheckSizes(window_chunk=16, swing_chunk=16, pair_chunk=16,
+                                 lanes=lanes,  # the other loop, refilling its lanes
+                                 few_paths=-1)  # always the other loop
     # compiled as ``certify`` is: the problem's arrays as arguments (as constants they were
     # folded into the program, and the clearances differed in their last bits)
-    chunked_other = jit(lambda arrays, x: certified.check(problem.spec, arrays, x))(arrays, x)
+    chunked_other = jit(lambda arrays, x: certified.check(problem.spec, arrays, x,
+                                                          sizes=sizes))(arrays, x)
     assert np.sum(~one_chunk_narrow["colliding"]) > 3 * 16  # several chunks ran
     assert np.sum(one_chunk_narrow["free"]) > 10
     if scene == "paper-case-1":
@@ -168,33 +168,6 @@ def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, monkeypatch, 
     for name, value in one_chunk_narrow.items():
         np.testing.assert_array_equal(value, np.asarray(getattr(chunked_other, name)),
                                       err_msg=name)
-
-
-@pytest.mark.parametrize("size", [1, 7, 4000])
-def test_chosen_rows_come_first_in_order_as_a_stable_sort_puts_them(rng, size):
-    """``_rows_first`` (a running count) against NumPy's stable argsort, on random masks and
-    on all-chosen and none-chosen ones."""
-    for chosen in (rng.random(size) < 0.3, np.ones(size, bool), np.zeros(size, bool)):
-        rows, count, place = jax.jit(certified._rows_first, static_argnums=1)(chosen, True)
-        np.testing.assert_array_equal(np.asarray(rows), np.argsort(~chosen, kind="stable"))
-        assert int(count) == int(chosen.sum())
-        np.testing.assert_array_equal(np.asarray(place)[np.asarray(rows)], np.arange(size))
-
-
-def test_window_bits_pack_and_are_found_by_rank(rng):
-    """``_packed`` against NumPy's bit packing, and ``_nth_set_bit`` against the positions of
-    the set bits, on random words (empty and full ones among them)."""
-    bits = rng.random((50, 101)) < 0.3
-    bits[0], bits[1] = False, True
-    words = np.asarray(jax.jit(certified._packed)(bits))
-    padded = np.pad(bits, ((0, 0), (0, 27)))
-    expected = np.packbits(padded.reshape(50, 4, 32), axis=-1, bitorder="little")
-    np.testing.assert_array_equal(words, expected.view("<u4")[..., 0])
-    flat = words.reshape(-1)
-    word, rank = zip(*[(w, n) for w in range(len(flat)) for n in range(bin(flat[w]).count("1"))])
-    found = jax.jit(certified._nth_set_bit)(flat[list(word)], np.asarray(rank, np.int32))
-    positions = [np.nonzero((int(flat[w]) >> np.arange(32)) & 1)[0][n] for w, n in zip(word, rank)]
-    np.testing.assert_array_equal(np.asarray(found), positions)
 
 
 # The best path of a sampled search (preset A, 4 restarts, seed 0) in each scene.
@@ -212,24 +185,26 @@ def test_screened_windows_fail_where_every_window_tested_fails(rng, scene):
     spec, arrays = problem.spec, problem.arrays
     centre = np.asarray(NEAR_A_SOLUTION[scene])
     x = jax.numpy.asarray(centre + rng.normal(0.0, 1.0, (300, problem.n_free)), np.float32)
-    motion = certified._Motion(arrays.lengths, arrays.world, arrays.start, arrays.goal, x)
+    motion = samples.Motion(arrays.lengths, arrays.world, arrays.start, arrays.goal, x)
     margin = np.float32(0.0)
 
     @jax.jit
     def both(x):
-        clearances = certified._sample_clearances(
+        clearances = samples.sample_clearances(
             arrays.lengths, arrays.world, arrays.start, arrays.goal, x, spec.degree,
             spec.n_samples)
         open_ = clearances.min(axis=0) >= 0
         moved = motion._replace(x=x)
-        swing = certified._window_swings(
+        swing = windows.window_swings(
             arrays.lengths, arrays.start, arrays.goal, x,
-            *certified._window_tables(spec.degree, spec.n_samples, x.dtype))
+            *windows.window_tables(spec.degree, spec.n_samples, x.dtype))
         screened_out = ((swing - clearances <= 0) & open_[None]).sum()
-        return (certified._screened_window_pass(moved, clearances, open_, spec.degree,
-                                                spec.n_samples, margin),
-                certified._dense_window_pass(moved, *certified._rows_first(open_),
-                                             spec.degree, spec.n_samples, margin),
+        sizes = certified.CheckSizes()
+        return (windows.screened_window_pass(moved, clearances, open_, spec.degree,
+                                             spec.n_samples, margin, sizes.swing_chunk,
+                                             sizes.pair_chunk),
+                windows.dense_window_pass(moved, *bits.rows_first(open_), spec.degree,
+                                          spec.n_samples, margin, sizes.window_chunk),
                 open_, screened_out)
 
     screened, dense, open_, screened_out = both(x)

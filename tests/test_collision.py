@@ -1,5 +1,5 @@
-"""The sampled check and the window bounds (``jaxarm.checks.collision``) against shapely and dense
-grids."""
+"""The sampled check (``jaxarm.checks.collision``) and the certified check's bounds
+(``jaxarm.checks.certified.bounds`` and ``hull``) against shapely and dense grids."""
 
 import functools
 import math
@@ -13,6 +13,7 @@ from random_worlds import random_world_problems
 
 import jaxarm
 from jaxarm.checks import collision
+from jaxarm.checks.certified import bounds, hull
 from jaxarm.model import path
 from jaxarm.model import world as world_lib
 from jaxarm.testing import (
@@ -120,8 +121,7 @@ def test_hull_separation_is_a_lower_bound_on_the_shapely_distance_of_the_hull(rn
     ratios, exact_circles = [], 0
     for problem in random_world_problems(rng, 40, collision="certified"):
         corners = rng.uniform(-60, 60, (200, 1, 2)) + rng.normal(0, 6, (200, 4, 2))
-        ours = np.asarray(collision.hull_separation(problem.arrays.world,
-                                                    _corner_list(corners)))
+        ours = np.asarray(hull.hull_separation(problem.arrays.world, _corner_list(corners)))
         oracle, circle_oracle = _shapely_hull_gaps(problem.world, corners)
         assert np.all(ours <= np.maximum(oracle, 0.0) + 1e-3)
         assert np.all(np.isinf(ours) == np.isinf(oracle))  # no obstacles
@@ -130,7 +130,7 @@ def test_hull_separation_is_a_lower_bound_on_the_shapely_distance_of_the_hull(rn
         # circles alone: their gap is the exact distance where apart
         circle_world = problem.arrays.world._replace(
             polygon_valid=np.zeros_like(problem.arrays.world.polygon_valid))
-        circle_gap = np.asarray(collision.hull_separation(circle_world, _corner_list(corners)))
+        circle_gap = np.asarray(hull.hull_separation(circle_world, _corner_list(corners)))
         apart = np.isfinite(circle_oracle) & (circle_oracle > 0)
         np.testing.assert_allclose(circle_gap[apart], circle_oracle[apart], atol=2e-4)
         exact_circles += apart.sum()
@@ -216,14 +216,14 @@ def test_hull_separation_with_the_nearest_obstacle_alone_is_a_lower_bound(rng, k
                                              for c in range(2)), world)
         if kind == "circle":
             distances, valid = parts.circles, world.circle_valid
-            ours = collision.hull_separation(world, _corner_list(corners),
-                                             circle_distances=(distances, spread))
+            ours = hull.hull_separation(world, _corner_list(corners),
+                                        circle_distances=(distances, spread))
         else:
             distances, valid = list(parts.polygons), world.polygon_valid
-            ours = collision.hull_separation(world, _corner_list(corners),
-                                             polygon_distances=(parts.polygons, spread))
+            ours = hull.hull_separation(world, _corner_list(corners),
+                                        polygon_distances=(parts.polygons, spread))
         ours = np.asarray(ours)
-        full = np.asarray(collision.hull_separation(world, _corner_list(corners)))
+        full = np.asarray(hull.hull_separation(world, _corner_list(corners)))
         oracle, _ = _shapely_hull_gaps(problem.world, corners)
         assert np.all(ours <= np.maximum(oracle, 0.0) + 1e-3)
         apart = np.isfinite(oracle) & (oracle > 0)
@@ -244,18 +244,18 @@ def test_hull_separation_with_the_nearest_obstacle_alone_is_a_lower_bound(rng, k
     key = "circle_distances" if kind == "circle" else "polygon_distances"
     for given in (([nan] + one, jnp.ones(2)), ([jnp.ones(2)] * len(distances), nan)):
         given = given if kind == "circle" else (jnp.stack(given[0]), given[1])
-        assert np.all(np.isnan(np.asarray(collision.hull_separation(
+        assert np.all(np.isnan(np.asarray(hull.hull_separation(
             world, [(jnp.zeros(2), jnp.zeros(2))] * 4, **{key: given}))))
 
 
 def swing_shortfalls(lengths, world, about_centre: list, radius) -> list:
     """The certified piece test's first-order bound: each link's swing (``link_swings``) less
     its exact clearance at the centre."""
-    speed = [collision.taylor_derivative_bound([order[j] for order in about_centre], radius)
+    speed = [bounds.taylor_derivative_bound([order[j] for order in about_centre], radius)
              for j in range(len(about_centre[0]))]
     clearance = collision.posture_clearance_bound(lengths, world, about_centre[0], exact=True)
     return [swing - bound for swing, bound in
-            zip(collision.link_swings(lengths, speed, radius), clearance)]
+            zip(bounds.link_swings(lengths, speed, radius), clearance)]
 
 
 def third_order_shortfalls(lengths, world, about_centre: list, radius) -> list:
@@ -263,11 +263,11 @@ def third_order_shortfalls(lengths, world, about_centre: list, radius) -> list:
     ``LinkMotion.jerk`` less the gap of the hull of its ``bent_corners`` alone (on that
     hull's own axes)."""
     return [radius**3 / 6 * motion.jerk
-            - collision.hull_separation(world, collision.bent_corners(motion, radius))
-            for motion in collision.link_motions(lengths, about_centre, radius)]
+            - hull.hull_separation(world, bounds.bent_corners(motion, radius))
+            for motion in bounds.link_motions(lengths, about_centre, radius)]
 
 
-@pytest.mark.parametrize("bound_fn", [collision.sweep_shortfalls, collision.drift_shortfalls,
+@pytest.mark.parametrize("bound_fn", [bounds.sweep_shortfalls, bounds.drift_shortfalls,
                                       swing_shortfalls, third_order_shortfalls],
                          ids=["sweep", "drift", "swing", "third-order"])
 @pytest.mark.parametrize("degree", [6, 8])
@@ -308,7 +308,7 @@ def test_piece_bounds_hold_on_a_dense_grid(rng, degree, bound_fn):
 
 
 def test_the_turning_line_bound_is_a_lower_bound_on_the_swept_patch(rng):
-    """``_Patch``'s line bound: never above shapely's distance from the segment at 2001 times
+    """``hull.Patch``'s line bound: never above shapely's distance from the segment at 2001 times
     of its linear motion, for circles (less the radius) and boxes, and it proves most
     patches that stay apart from their obstacle."""
     n = 400
@@ -320,12 +320,12 @@ def test_the_turning_line_bound_is_a_lower_bound_on_the_swept_patch(rng):
     half = rng.uniform(1, 10, (n, 2))
     corners = [centre + half * np.array(sign) for sign in [(-1, -1), (1, -1), (1, 1), (-1, 1)]]
     with jax.enable_x64(True):  # float64, so the comparison is the bound's, not rounding's
-        patch = collision._Patch(*(tuple(jnp.asarray(a[:, c]) for c in range(2))
-                                   for a in (near, far, near_step, far_step)))
-        circle = np.asarray(collision._line_gap(*patch.line_sides(*centre.T),
-                                                patch.longest)) - radius
+        patch = hull.Patch(*(tuple(jnp.asarray(a[:, c]) for c in range(2))
+                             for a in (near, far, near_step, far_step)))
+        circle = np.asarray(hull._line_gap(*patch.line_sides(*centre.T),
+                                           patch.longest)) - radius
         sides = [patch.line_sides(*c.T) for c in corners]
-        box = np.asarray(collision._line_gap(
+        box = np.asarray(hull._line_gap(
             functools.reduce(jnp.minimum, [s[0] for s in sides]),
             functools.reduce(jnp.maximum, [s[1] for s in sides]), patch.longest))
     times = np.linspace(-1, 1, 2001)
@@ -358,11 +358,11 @@ def test_a_link_turning_beside_an_obstacle_is_proved_where_its_hull_overlaps_it(
     # moves down as the far end (30, 0) moves up; a piece of radius 1
     corners = [(jnp.float32(0.0), jnp.float32(1.5)), (jnp.float32(0.0), jnp.float32(-1.5)),
                (jnp.float32(30.0), jnp.float32(-1.5)), (jnp.float32(30.0), jnp.float32(1.5))]
-    hull = float(collision.hull_separation(world, corners))
-    patch = collision._Patch((jnp.float32(0.0), jnp.float32(0.0)),
-                             (jnp.float32(30.0), jnp.float32(0.0)),
-                             (jnp.float32(0.0), jnp.float32(-1.5)),
-                             (jnp.float32(0.0), jnp.float32(1.5)))
-    with_line = float(collision.hull_separation(world, corners, patch=patch))
-    assert hull < 0 < with_line <= gap + 1e-5
+    hull_alone = float(hull.hull_separation(world, corners))
+    patch = hull.Patch((jnp.float32(0.0), jnp.float32(0.0)),
+                       (jnp.float32(30.0), jnp.float32(0.0)),
+                       (jnp.float32(0.0), jnp.float32(-1.5)),
+                       (jnp.float32(0.0), jnp.float32(1.5)))
+    with_line = float(hull.hull_separation(world, corners, patch=patch))
+    assert hull_alone < 0 < with_line <= gap + 1e-5
     assert with_line > 0.95 * gap

@@ -104,7 +104,7 @@ def _surrogate_one_sample_at_a_time(problem, x, barrier_weight, margin, temperat
 
     def add_barrier(total, sample):
         bounds = collision.posture_clearance_bound(arrays.lengths, arrays.world,
-                                                   sample.derivatives[0])
+                                                   sample.derivatives[0], exact=False)
         return total + sum(temperature * jax.nn.softplus((margin + arrays.margin - c)
                                                          / temperature) for c in bounds)
 

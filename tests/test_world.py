@@ -11,6 +11,23 @@ from jaxarm.model import world as world_lib
 from jaxarm.testing import oracle_separation
 
 
+def _on_end_points(kernel, start, end, world):
+    """An ``*_xy`` kernel of ``world`` applied to segments given by end points of shape
+    (..., 2): shape (..., n_slots), the obstacle slots last."""
+    coordinates = (start[..., 0], start[..., 1], end[..., 0], end[..., 1])
+    return jnp.moveaxis(kernel(*coordinates, world), 0, -1)
+
+
+def segment_separation(start, end, world):
+    """``world.separation_xy`` of segments given by end points: shape (..., n_slots)."""
+    return _on_end_points(world_lib.separation_xy, start, end, world)
+
+
+def segment_overlap_depth(start, end, world):
+    """``world.overlap_depth_xy`` of segments given by end points: shape (..., n_slots)."""
+    return _on_end_points(world_lib.overlap_depth_xy, start, end, world)
+
+
 @pytest.mark.parametrize(
     "world, message",
     [
@@ -33,8 +50,8 @@ def test_bad_worlds(world, message):
 
 def test_segment_separation_agrees_with_shapely_on_random_worlds(rng):
     # compiled once (op by op, 300 worlds took most of this test's time), as jaxarm compiles
-    separation_of, penetration_of, bound_of = (jit(f) for f in (
-        world_lib.separation, world_lib.penetration, world_lib.separation_bound_xy))
+    separation_of, depth_of, bound_of = (jit(f) for f in (
+        segment_separation, segment_overlap_depth, world_lib.separation_bound_xy))
     # The sampled check computes polygons slot by slot: the same numbers as the array form.
     slot_forms = jit(lambda *args: [jnp.stack(world_lib.polygon_slots(*args, exact=exact))
                                     for exact in (True, False)])
@@ -49,11 +66,10 @@ def test_segment_separation_agrees_with_shapely_on_random_worlds(rng):
         packed = world.pack(CAPACITIES)
         separation = np.asarray(separation_of(jnp.asarray(start), jnp.asarray(end),
                                               packed)).min(axis=-1)
-        penetration = np.asarray(penetration_of(jnp.asarray(start), jnp.asarray(end),
-                                                packed)).sum(axis=-1)
+        depth = np.asarray(depth_of(jnp.asarray(start), jnp.asarray(end), packed)).sum(axis=-1)
         distance, hit = oracle_separation(world, start, end)
         clear = np.abs(separation) > 1e-3  # away from exact tangency (float32 rounding)
-        np.testing.assert_array_equal((penetration > 0)[clear], hit[clear])
+        np.testing.assert_array_equal((depth > 0)[clear], hit[clear])
         np.testing.assert_array_equal((separation < 0)[clear], hit[clear])
         apart = clear & ~hit
         np.testing.assert_allclose(separation[apart], distance[apart], rtol=1e-4, atol=1e-3)
@@ -82,7 +98,7 @@ def test_segment_parallel_to_a_box_side(offset, collides):
     world = jaxarm.World(boxes=[((33.0, 0.0), (70.0, 30.0))])
     start = jnp.array([[20.0, offset], [40.0, offset]])
     end = jnp.array([[40.0, offset], [50.0, offset]])
-    penetration = np.asarray(world_lib.penetration(start, end, world.pack()))
-    assert (penetration[1].sum() > 0) == collides
+    depth = np.asarray(segment_overlap_depth(start, end, world.pack()))
+    assert (depth[1].sum() > 0) == collides
     _, hit = oracle_separation(world, np.asarray(start), np.asarray(end))
     assert hit[1] == collides

@@ -76,7 +76,7 @@ def link_clearances(world, links: list) -> list:
     """Per link, a lower bound on its signed distance to the nearest obstacle (cm; negative
     inside one; exact for circles), each of the links' batch shape: what ``refine``'s
     barrier descends (``collision.link_clearance_bounds``)."""
-    return collision_lib.link_clearance_bounds(world, links)
+    return collision_lib.link_clearance_bounds(world, links, exact=False)
 
 
 def compiles_best_at_default_level(spec: ProblemSpec) -> bool:
@@ -223,8 +223,8 @@ def fitness(problem: Problem, x) -> jax.Array:
 
 
 def violation(problem: Problem, x) -> jax.Array:
-    """How much a path collides (cm: the deepest penetration found, see ``jaxarm.checks.collision``
-    and ``jaxarm.checks.certified``).
+    """How much a path collides (cm: the deepest penetration found under the sampled check; under
+    the certified check, the user guide's model page, "The certified check in detail").
 
     Args:
       x: free parameters, shape (..., n_free).

@@ -24,7 +24,7 @@ def penetration(lengths, world, theta):
       Array of shape (..., n_joints, n_obstacle_slots), >= 0.
     """
     links = link_endpoints(lengths, theta)
-    return jnp.stack([jnp.moveaxis(world_lib.penetration_xy(*link, world), 0, -1)
+    return jnp.stack([jnp.moveaxis(world_lib.overlap_depth_xy(*link, world), 0, -1)
                       for link in links], axis=-2)
 
 

@@ -230,12 +230,6 @@ def leading_slots(values, ndim: int):
     return values.reshape(values.shape[:1] + (1,) * ndim)
 
 
-def _on_end_points(kernel, start, end, world):
-    """Apply an ``*_xy`` kernel to end points of shape (..., 2); obstacle slots come last."""
-    coordinates = (start[..., 0], start[..., 1], end[..., 0], end[..., 1])
-    return jnp.moveaxis(kernel(*coordinates, world), 0, -1)
-
-
 def _from_segment(px, py, ax, ay, bx, by):
     """The vector from the nearest point of segments (a, b) to points (px, py)."""
     dx, dy = bx - ax, by - ay
@@ -256,7 +250,7 @@ class Sweep(NamedTuple):
     """How far a segment's end points move: the start anywhere on ``s +/- (ux, uy)``, the end
     on ``e +/- (wx, wy)``, each coordinate of shape (...); the moving segment stays inside
     the convex hull of those four points (a segment moving linearly, over an interval of r
-    about its centre, in ``jaxarm.checks.collision``)."""
+    about its centre, in ``jaxarm.checks.certified.bounds``)."""
 
     ux: jax.Array
     uy: jax.Array
@@ -291,8 +285,9 @@ def circle_slots(sx, sy, ex, ey, world: WorldArrays) -> list:
     empty slots), one array of the coordinates' shape (...) per slot.
 
     Written out slot by slot with each circle's numbers as scalars: with the slots as a leading
-    array axis, the reduction over them compiled to a scalar loop on CPU and the sampled check
-    of paper-case-1 (4 circle slots) ran 20x slower than with one slot.
+    array axis, the reduction over them compiled to a scalar loop on CPU
+    (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Polygons slot by slot in the
+    sampled check").
     """
     circles = jnp.asarray(world.circles, dtype=sx.dtype)
     return [jnp.where(world.circle_valid[i],
@@ -314,15 +309,15 @@ def polygon_overlap_gap_xy(sx, sy, ex, ey, world: WorldArrays):
     Coordinates of shape (...); returns shape (n_polygon_slots, ...).
 
     The polygon slots stay an array axis here (unlike ``circle_slots``): written out per slot
-    and per vertex, the certified check of a world with 8 polygon slots took 4 minutes and 8 GB
-    to compile. The sampled check, and the certified check's samples and windows, call it one
+    and per vertex, the certified check of a world with many polygon slots took far longer to
+    compile. The sampled check, and the certified check's samples and windows, call it one
     slot at a time (``polygon_slots``).
 
     The obstacle data, shape (n_slots, 1, ..., 1), meet the coordinates by NumPy's rank
     promotion. With the coordinates' leading axis made explicit the values were the same, but
     the compiled gradient of refine's surrogate on death-trap no longer matched the one
-    computed op by op (tests/test_polish.py: a component 13 % off, or of the other sign, two
-    ways of writing it): the gap is a maximum of pieces, and rounding picks one at near-ties."""
+    computed op by op (tests/test_polish.py): the gap is a maximum of pieces, and rounding
+    picks one at near-ties."""
     dtype, n = sx.dtype, sx.ndim
     # Written out per coordinate and per vertex slot (a static, small count): contractions and
     # reductions over axes of length 2 or 4 compile to slow loops on CPU, while this form
@@ -377,11 +372,11 @@ def polygon_separation_xy(sx, sy, ex, ey, world: WorldArrays, vertex_axis: bool 
 
     ``vertex_axis``: the distances to the edges as one array with the vertex slots as an axis
     rather than written out per vertex: the same values up to how XLA rounds an edge's
-    distance in each program (a minimum is exact). The same bits on jax 0.10.2; up to 2 float32
-    ulps apart in 255 of 34,080 distances on jax 0.8.0 (tests/test_world.py's random worlds).
-    It compiles to fewer kernels, so the certified check compiles faster ("Fewer kernels in the
-    certified check" in ``benchmarks/RESULTS.md``, *Decisions and negative results*); the
-    sampled check with a margin keeps the written-out form, which runs faster there."""
+    distance in each program (a minimum is exact), a few float32 ulps on some jax versions
+    (tests/test_world.py's random worlds). It compiles to fewer kernels, so the certified
+    check compiles faster ("Fewer kernels in the certified check" in
+    ``benchmarks/RESULTS.md``, *Decisions and negative results*); the sampled check with a
+    margin keeps the written-out form, which runs faster there."""
     n = sx.ndim
     gap = polygon_overlap_gap_xy(sx, sy, ex, ey, world)
     vertices = jnp.asarray(world.vertices, dtype=sx.dtype)
@@ -405,18 +400,6 @@ def polygon_separation_xy(sx, sy, ex, ey, world: WorldArrays, vertex_axis: bool 
     return jnp.where(leading_slots(world.polygon_valid, n), signed, jnp.inf)
 
 
-def separation(start, end, world: WorldArrays):
-    """Signed separation between segments and every obstacle slot (circles, then polygons).
-
-    Args:
-      start, end: segment end points, shape (..., 2).
-
-    Returns:
-      Array of shape (..., n_circle_slots + n_polygon_slots); +inf for empty slots.
-    """
-    return _on_end_points(separation_xy, start, end, world)
-
-
 class SeparationParts(NamedTuple):
     """Signed separations of segments of shape (...) from every obstacle, in two parts."""
 
@@ -438,9 +421,11 @@ def separation_parts(sx, sy, ex, ey, world: WorldArrays) -> SeparationParts:
                   if world.vertices.shape[0] else None))
 
 
-def polygon_slots(sx, sy, ex, ey, world: WorldArrays, exact: bool = True) -> list:
+def polygon_slots(sx, sy, ex, ey, world: WorldArrays, *, exact: bool) -> list:
     """Signed separation of segments from every polygon slot (+inf for empty slots), computed
-    slot by slot: one array of the coordinates' shape (...) per slot.
+    slot by slot: one array of the coordinates' shape (...) per slot. ``exact``: the exact
+    separation (``polygon_separation_xy``), or the separating-axis gap
+    (``polygon_overlap_gap_xy``: at most the distance, exact where <= 0).
 
     Like ``separation_parts(...).polygons`` unstacked, but each slot is computed alone (as a
     world of one polygon). The sampled check and the certified check's samples and windows use
@@ -469,8 +454,8 @@ def one_polygon(world: WorldArrays, slot: int) -> WorldArrays:
 
 
 def separation_xy(sx, sy, ex, ey, world: WorldArrays):
-    """Like ``separation`` for coordinates given separately, each of shape (...); returns
-    shape (n_slots, ...)."""
+    """Signed separation between segments and every obstacle slot (circles, then polygons;
+    +inf for empty slots). Coordinates of shape (...); returns shape (n_slots, ...)."""
     return jnp.concatenate(
         [circle_separation_xy(sx, sy, ex, ey, world),
          polygon_separation_xy(sx, sy, ex, ey, world)],
@@ -489,15 +474,8 @@ def separation_bound_xy(sx, sy, ex, ey, world: WorldArrays):
                             polygon_overlap_gap_xy(sx, sy, ex, ey, world)], axis=0)
 
 
-def penetration(start, end, world: WorldArrays):
-    """Penetration depth of segments into every obstacle slot, >= 0; shape (..., n_slots).
-
-    Cheaper than ``separation`` (no distances for disjoint polygons); zero iff no overlap.
-    """
-    return _on_end_points(penetration_xy, start, end, world)
-
-
-def penetration_xy(sx, sy, ex, ey, world: WorldArrays):
-    """Like ``penetration`` for coordinates given separately, each of shape (...); returns
-    shape (n_slots, ...)."""
+def overlap_depth_xy(sx, sy, ex, ey, world: WorldArrays):
+    """How deep segments overlap every obstacle slot (their penetration depth; 0 for empty
+    slots), >= 0 and zero iff no overlap. Coordinates of shape (...); returns shape (n_slots,
+    ...). Cheaper than ``separation_xy`` (no distances for disjoint polygons)."""
     return jnp.maximum(-separation_bound_xy(sx, sy, ex, ey, world), 0.0)
