@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -133,16 +134,50 @@ def joint_positions(lengths, theta) -> jnp.ndarray:
     """Joint positions, base first, for any leading batch shape (paper eqs. 1-3).
 
     Args:
-      lengths: link lengths, shape (n_joints,).
-      theta: relative joint angles (rad), shape (..., n_joints).
+      lengths: link lengths, shape (n_joints,) (a list, tuple or array).
+      theta: relative joint angles (rad), shape (..., n_joints) (a list, tuple or array; a
+        number for a 1-link arm).
 
     Returns:
       Positions, shape (..., n_joints + 1, 2); index 0 is the base (0, 0), the last the
       end-effector.
+
+    Raises:
+      ValueError: naming the argument, for angles or lengths that are not real numbers or
+        whose shapes do not match.
+
+    Examples:
+      >>> jaxarm.joint_positions([30, 30, 20], [0.0, 0.0, 0.0])[-1].tolist()
+      [80.0, 0.0]
     """
+    theta = jnp.asarray(_real("theta", theta))
+    if not jnp.issubdtype(theta.dtype, jnp.floating):
+        theta = theta.astype(jnp.result_type(float))
+    lengths = jnp.asarray(_real("lengths", lengths), theta.dtype)
+    if lengths.ndim != 1 or lengths.shape[0] == 0:
+        raise ValueError(f"lengths must have shape (n_joints,), got shape {lengths.shape}")
+    if theta.ndim == 0 and lengths.shape[0] == 1:  # one link: one angle
+        theta = theta[None]
+    if theta.ndim == 0 or theta.shape[-1] != lengths.shape[0]:
+        raise ValueError(f"theta must have shape (..., {lengths.shape[0]}) for "
+                         f"{lengths.shape[0]} links, got shape {theta.shape}")
     links = link_endpoints(lengths, theta)
     points = [(links[0][0], links[0][1])] + [(ex, ey) for _, _, ex, ey in links]
     return jnp.stack([jnp.stack(point, axis=-1) for point in points], axis=-2)
+
+
+def _real(field: str, values):
+    """``values`` as an array of real numbers (traced values pass as they are), or a
+    ValueError naming ``field``."""
+    if isinstance(values, jax.core.Tracer):
+        return values
+    try:
+        array = np.asarray(values)
+    except ValueError:  # ragged
+        array = None
+    if array is None or array.dtype.kind not in "biuf":
+        raise ValueError(f"{field} must be real numbers, got {values!r}")
+    return array
 
 
 def inverse_kinematics(arm: Arm, x: float, y: float, phi: float, elbow: int = 1) -> np.ndarray:
