@@ -79,8 +79,8 @@ class Trajectory:
         if self.duration < MIN_DURATION:
             raise ValueError(f"duration must be at least {MIN_DURATION:g} s, got {duration!r}")
         # coefficients[k]: of the k-th derivative in r, k = 0..5, shape (n_joints, degree + 1 - k)
-        base = path.coefficients(np.asarray(problem.start), np.asarray(problem.goal), self.x,
-                                 problem.degree)
+        base = path.polynomial_coefficients(np.asarray(problem.start), np.asarray(problem.goal),
+                                            self.x, problem.degree)
         self.coefficients = [base]
         for _ in range(5):
             self.coefficients.append(poly.polyder(self.coefficients[-1], axis=-1))

@@ -79,7 +79,7 @@ def test_the_proofs_bounds_hold_at_random_points_of_their_cubes(case1, rng):
     with jax.enable_x64(True):
         _, lipschitz = blocking._sample_bounds(case1)
         margin = np.asarray(blocking._depth_margin_fn(case1)(centres, np.full(len(centres), h)))
-        distance = np.asarray(path.travelling_distance(
+        distance = np.asarray(path.simpson_distance(
             np.asarray(case1.start), np.asarray(case1.goal), centres, case1.degree,
             case1.n_samples))
     low_fit = distance - lipschitz * h >= 1.0 / threshold
