@@ -14,7 +14,7 @@ tables did (``jaxarm.paper.published``). Two facts make them usable:
   set that must be blocked); ``label_agreement`` scores any problem against the verdicts.
 
 Everything runs on jaxarm's own batched kernels; see ``benchmarks/reconstruct_scenarios.py`` for
-the runs that produced the shipped scenario files; ``jaxarm.paper.blocking`` adds the obstacles
+the runs that produced the shipped scenario files; ``benchmarks/blocking.py`` adds the obstacles
 that block case 1's paths better than the paper's runs found.
 """
 

@@ -437,7 +437,7 @@ def _reconstruction_section(report: _Report, case1, case2, case1_study) -> None:
         "keep every published feasible set clear, picked to block the most of the initial range "
         "and every published infeasible set; on case 1, further circles that keep Table 2's "
         "motions about 0.05 cm clear block every path above fitness 0.18 (the paper's best: "
-        "0.1774; `jaxarm.paper.blocking` proves none is free at the samples by branch and "
+        "0.1774; `benchmarks/blocking.py` proves none is free at the samples by branch and "
         "bound) and narrow the free set near the optimum; "
         "`benchmarks/reconstruct_scenarios.py` runs every step. One layout consistent with "
         "the paper's numbers, not the paper's own.", "",

@@ -8,8 +8,8 @@ link at every time (``sweep_excursion``). There ``block_paths`` places the large
 keeps the gap from the published sweep, until every path given to it collides.
 ``free_paths_above`` looks for such paths (a grid and the default search), ``block_better_paths``
 alternates the two, and ``prove_blocked`` shows by branch and bound that none is left: every
-path above a threshold collides at a sample. ``benchmarks/reconstruct_scenarios.py`` runs them
-on case 1.
+path above a threshold collides at a sample. ``reconstruct_scenarios.py`` beside it runs them on
+case 1 (``tests/test_blocking.py`` imports this file by its path).
 """
 
 from __future__ import annotations
