@@ -42,7 +42,7 @@ SAFETY = 1e-9  # relative widening of the returned duration
 # s: the shortest duration. Derivatives divide by T^3 (jerk), so above it every path whose
 # coefficients float32 holds has finite float64 derivatives.
 MIN_DURATION = 1e-6
-MAX_ROWS = 10**7  # rows of ``table`` (and of an export): 1 GB of float64 columns
+MAX_ROWS = 10**7  # rows of ``table`` (and of an export): bounds its float64 columns' memory
 
 
 class TrajectoryPoint(NamedTuple):

@@ -221,7 +221,7 @@ def run_fold(fold: SampleFold, start, goal, x, degree: int, n_samples: int):
 
     One sample at a time keeps the working set to a few arrays of the batch size, which stay
     in cache; materialising (batch, n_samples) intermediates instead makes the kernel
-    memory-bound (about 3x slower at a batch of 1e5 on CPU).
+    memory-bound on CPU.
 
     Args:
       fold: the ``SampleFold``.
@@ -255,8 +255,9 @@ def sample_values(value: Callable, start, goal, x, degree: int, n_samples: int,
     each array with a leading axis of n_samples.
 
     Each value is written into the result one step late: written in the step that computes
-    it, XLA's CPU backend fused the computation into the write, and stage 0 of the certified
-    check ran about 1.7 times slower on polygon-field's recorded swarm.
+    it, XLA's CPU backend fused the computation into the write, which slowed stage 0 of the
+    certified check (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Windows
+    screened by their swing").
     """
     probe = Sample(jnp.int32(0), jnp.zeros((), x.dtype),
                    tuple((jnp.zeros(x.shape[:-1], x.dtype),) * start.shape[-1]

@@ -57,8 +57,8 @@ def joint_path(problem: Problem, x, r, order: int = 0) -> jax.Array:
     return _joint_angles(problem.arrays.start, problem.arrays.goal, x, basis, order=order)
 
 
-# One program per shape: run op by op, a call with a new shape compiled 8-12 small programs
-# (0.34-0.41 s, against 0.07-0.09 s compiled whole, in a fresh process).
+# One program per shape: run op by op, a call with a new shape compiled several small programs,
+# which took longer together than the one program compiled whole.
 _joint_angles = jit(path.joint_angle_array, static_argnames="order")
 
 
