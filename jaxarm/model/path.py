@@ -311,8 +311,8 @@ def distance_fold(x) -> SampleFold:
 
 
 def simpson_distance(start, goal, x, degree: int, n_samples: int):
-    """``distance_fold`` on its own: the travelling distance of free parameters by Simpson's
-    rule over ``n_samples`` points (``jaxarm.travelling_distance`` is this for a problem).
+    """``distance_fold`` on its own: the travelling distance of the paths ``x`` by Simpson's
+    rule over ``n_samples`` points (``jaxarm.travelling_distance`` computes it for a problem).
 
     Args:
       start, goal: joint angles, shape (n_joints,).
