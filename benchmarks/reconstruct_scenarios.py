@@ -29,8 +29,9 @@ import time
 
 import numpy as np
 
+import blocking  # benchmarks/blocking.py, beside this file
 import jaxarm
-from jaxarm.paper import blocking, published, reconstruct
+from jaxarm.paper import published, reconstruct
 from jaxarm.paper.published import a6_array
 from jaxarm.study import escape_study, wilson_interval
 

@@ -37,11 +37,11 @@ PSO_METHODS = PRESET_NAMES + tuple(name + suffix for suffix in TOPOLOGY_SUFFIXES
 DEFAULT_METHODS = ("A-ring[inertia_end=0.4]", "A")
 DEFAULT_CONSTRAINT = "feasibility"
 DEFAULT_RESTARTS = 8  # per method
-# What one compiled search call holds: restarts x particles paths evaluated together (about
-# 6 KB each: a certified search of 100,000 paths peaked at 0.6 GB on CPU), and restarts x
-# (iterations + 1) values of history (2**26: 256 MB of float32). The bounds are at least twice what
-# benchmarks/escape_bench.py runs at once on a GPU (100,000 restarts x 20 particles) and stop a
-# size such as 10**9 before it allocates what no machine holds.
+# What one compiled search call holds: restarts x particles paths evaluated together (each with
+# its check's working arrays), and restarts x (iterations + 1) float32 values of history. The
+# bounds are at least twice what benchmarks/escape_bench.py runs at once on a GPU (100,000
+# restarts x 20 particles) and stop a size such as 10**9 before it allocates what no machine
+# holds.
 MAX_PATHS_AT_ONCE = 2**22
 MAX_HISTORY_AT_ONCE = 2**26
 MAX_SAMPLES = 100_001  # points of r: 1000 times the paper's 101

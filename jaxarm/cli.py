@@ -137,6 +137,19 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--no-cache", action="store_true",
                         help="do not keep compiled and traced programs on disk (default: keep "
                              "them in $JAXARM_CACHE_DIR, else ~/.cache/jaxarm/xla)")
+    _add_process_options(parser)
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_common_options(commands.add_parser(
+        "scenarios", help="list the shipped scenarios",
+        description="List the shipped scenarios with one-line descriptions."))
+    _add_solve_command(commands)
+    _add_study_command(commands)
+    _add_reproduce_command(commands)
+    return parser
+
+
+def _add_process_options(parser: argparse.ArgumentParser) -> None:
+    """The flags that run one command over several processes or machines."""
     processes = parser.add_argument_group(
         "several processes or machines",
         "Run the same command in every process; restarts are split over all of them, every "
@@ -149,12 +162,10 @@ def build_parser() -> argparse.ArgumentParser:
                            help="how many processes take part")
     processes.add_argument("--process-id", type=int, metavar="I",
                            help="this process's number, 0 .. N-1")
-    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    _add_common_options(commands.add_parser(
-        "scenarios", help="list the shipped scenarios",
-        description="List the shipped scenarios with one-line descriptions."))
 
+def _add_solve_command(commands) -> None:
+    """``jaxarm solve``: the search, its outputs and the best path's timing."""
     solve = commands.add_parser("solve", help="search one scenario and print the best path",
                                 description="Run PSO restarts on a scenario; print a summary.")
     _add_search_options(solve)
@@ -179,6 +190,11 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--plot", type=pathlib.Path,
                        help="write the motion as a figure (.png, .pdf or .svg)")
     solve.add_argument("--gif", type=pathlib.Path, help="write an animation of the motion (.gif)")
+    _add_timing_options(solve)
+
+
+def _add_timing_options(solve: argparse.ArgumentParser) -> None:
+    """``solve``'s flags that time the best path and export the trajectory."""
     timing = solve.add_argument_group(
         "trajectory in seconds",
         "Time the best path: a given --duration, or the shortest one that meets the --max-* "
@@ -195,6 +211,9 @@ def build_parser() -> argparse.ArgumentParser:
     timing.add_argument("--rate", type=float,
                         help=f"samples per second of --export ({EXPORT_RATE:g})")
 
+
+def _add_study_command(commands) -> None:
+    """``jaxarm study``: the escape study and its outputs."""
     study = commands.add_parser("study", help="escape probability over many seeds",
                                 description="Escape-probability study: every method over the "
                                             "same seeds, with 95 % Wilson intervals.")
@@ -220,6 +239,9 @@ def build_parser() -> argparse.ArgumentParser:
     study.add_argument("--plot", type=pathlib.Path,
                        help="write escape rates as a figure (.png, .pdf or .svg)")
 
+
+def _add_reproduce_command(commands) -> None:
+    """``jaxarm reproduce-paper``: the report's sizes and where it goes."""
     reproduce = commands.add_parser(
         "reproduce-paper", help="run the paper's experiments and write a report",
         description="Tables 2-6 of the paper, a large escape study, the constraint rules, "
@@ -245,7 +267,6 @@ def build_parser() -> argparse.ArgumentParser:
                            help="threads running the report's sections side by side (default: "
                                 "the cores available, at most 5; 1 under jax.distributed); "
                                 "results do not depend on it")
-    return parser
 
 
 def _check_outputs(args) -> None:

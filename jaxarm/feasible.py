@@ -18,7 +18,7 @@ from jaxarm.model.problem import Problem
 from jaxarm.stats import wilson_interval
 
 BLOCK = 4096  # paths per compiled call
-MAX_DRAWS = 2**24  # paths drawn at once, in float64: 134 MB per free coefficient
+MAX_DRAWS = 2**24  # paths drawn at once, in float64: bounds the draws' memory
 
 
 class FeasibleFraction(NamedTuple):

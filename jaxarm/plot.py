@@ -54,8 +54,8 @@ def _one_path(problem: Problem, x) -> np.ndarray:
     return x
 
 
-# Compiled (op by op, the figures of a solve compiled 74 tiny programs in every new process,
-# 2.4 s of the 3.9 s they took): ``joint_path`` is compiled too.
+# Compiled: op by op, a solve's figures compiled many tiny programs in every new process, most
+# of the time they took. ``joint_path`` is compiled too.
 _compiled_positions = jit(joint_positions)
 
 

@@ -91,14 +91,6 @@ class Result(NamedTuple):
     def n_restarts(self) -> int:
         return int(self.restarts.best_fitness.shape[0])
 
-    # Flat names for the per-restart arrays (the documented API before ``restarts`` existed).
-    restart_best_x = property(lambda self: self.restarts.best_x)
-    restart_best_fitness = property(lambda self: self.restarts.best_fitness)
-    restart_best_violation = property(lambda self: self.restarts.best_violation)
-    restart_escape_iter = property(lambda self: self.restarts.escape_iter)
-    restart_escape_x = property(lambda self: self.restarts.escape_x)
-    restart_history = property(lambda self: self.restarts.history)
-
     def summary(self) -> str:
         """A few human-readable lines."""
         escaped = int(np.sum(self.restarts.escape_iter >= 0))

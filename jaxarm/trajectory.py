@@ -42,7 +42,7 @@ SAFETY = 1e-9  # relative widening of the returned duration
 # s: the shortest duration. Derivatives divide by T^3 (jerk), so above it every path whose
 # coefficients float32 holds has finite float64 derivatives.
 MIN_DURATION = 1e-6
-MAX_ROWS = 10**7  # rows of ``table`` (and of an export): 1 GB of float64 columns
+MAX_ROWS = 10**7  # rows of ``table`` (and of an export): bounds its float64 columns' memory
 
 
 class TrajectoryPoint(NamedTuple):
@@ -79,8 +79,8 @@ class Trajectory:
         if self.duration < MIN_DURATION:
             raise ValueError(f"duration must be at least {MIN_DURATION:g} s, got {duration!r}")
         # coefficients[k]: of the k-th derivative in r, k = 0..5, shape (n_joints, degree + 1 - k)
-        base = path.coefficients(np.asarray(problem.start), np.asarray(problem.goal), self.x,
-                                 problem.degree)
+        base = path.polynomial_coefficients(np.asarray(problem.start), np.asarray(problem.goal),
+                                            self.x, problem.degree)
         self.coefficients = [base]
         for _ in range(5):
             self.coefficients.append(poly.polyder(self.coefficients[-1], axis=-1))

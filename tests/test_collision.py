@@ -293,8 +293,8 @@ def test_piece_bounds_hold_on_a_dense_grid(rng, degree, bound_fn):
             bound = -np.stack(bound_fn(problem.arm.lengths, problem.arrays.world,
                                        about_centre, radius), axis=-1)  # (paths, links)
             dense = np.linspace(centre - radius, centre + radius, 41)
-            theta = np.asarray(path.joint_angles(start, goal, jnp.asarray(x),
-                                                 path.basis_values(degree, dense)))
+            theta = np.asarray(path.joint_angle_array(start, goal, jnp.asarray(x),
+                                                      path.basis_values(degree, dense)))
             absolute = np.cumsum(theta, axis=-1)  # (paths, times, links)
             lengths = np.asarray(problem.arm.lengths)
             joints = np.concatenate([np.zeros(absolute.shape[:-1] + (1, 2)), np.cumsum(

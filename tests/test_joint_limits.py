@@ -35,12 +35,12 @@ def test_bernstein_bounds_contain_the_path_and_are_tight():
     tables = joint_limits.bernstein_tables(6, 101)  # (400, 7, 2)
     n_pieces = tables.shape[0]
     with jax.enable_x64(True):
-        bounds = np.asarray(path.joint_angles(start, goal, x, tables.reshape(-1, 2))
+        bounds = np.asarray(path.joint_angle_array(start, goal, x, tables.reshape(-1, 2))
                             ).reshape(100, n_pieces, 7, 3)
         r = np.linspace(0.0, 1.0, n_pieces * 16 + 1)
-        theta = np.asarray(path.joint_angles(start, goal, x, path.basis_values(6, r)))
-        curvature = np.abs(np.asarray(path.joint_angles(start, goal, x,
-                                                        path.basis_values(6, r, 2), 2)))
+        theta = np.asarray(path.joint_angle_array(start, goal, x, path.basis_values(6, r)))
+        curvature = np.abs(np.asarray(path.joint_angle_array(start, goal, x,
+                                                             path.basis_values(6, r, 2), 2)))
     inside = theta[:, :-1].reshape(100, n_pieces, 16, 3)
     assert np.all(inside <= bounds.max(axis=2)[:, :, None] + 1e-12)
     assert np.all(inside >= bounds.min(axis=2)[:, :, None] - 1e-12)

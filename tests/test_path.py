@@ -116,8 +116,9 @@ def test_sample_values_are_the_value_at_every_sample():
                                                 sample.derivatives[1][0] * sample.weight),
                                 start, goal, x, 7, 11, max_order=1)
     r = np.linspace(0.0, 1.0, 11)
-    angles = np.asarray(path.joint_angles(start, goal, x, path.basis_values(7, r, 0)))  # (5, 11, 2)
-    speeds = np.asarray(path.joint_angles(start, goal, x, path.basis_values(7, r, 1), 1))
+    # shape (paths, times, joints) = (5, 11, 2)
+    angles = np.asarray(path.joint_angle_array(start, goal, x, path.basis_values(7, r, 0)))
+    speeds = np.asarray(path.joint_angle_array(start, goal, x, path.basis_values(7, r, 1), 1))
     np.testing.assert_allclose(values[0], angles[..., 1].T, rtol=1e-6)
     np.testing.assert_allclose(values[1], (speeds[..., 0] * path.simpson_weights(11)).T,
                                rtol=1e-6)

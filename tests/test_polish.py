@@ -110,8 +110,8 @@ def _surrogate_one_sample_at_a_time(problem, x, barrier_weight, margin, temperat
 
     barrier = path.SampleFold(init=jnp.zeros(x.shape[:-1], x.dtype), step=add_barrier,
                               finish=lambda total: total / spec.n_samples, max_order=0)
-    distance = path.travelling_distance(arrays.start, arrays.goal, x, spec.degree,
-                                        spec.n_samples)
+    distance = path.simpson_distance(arrays.start, arrays.goal, x, spec.degree,
+                                     spec.n_samples)
     return distance + barrier_weight * path.run_fold(barrier, arrays.start, arrays.goal, x,
                                                      spec.degree, spec.n_samples)
 

@@ -163,12 +163,12 @@ def joint_angle_list(start, goal, x, basis, order: int = 0, per_path: bool = Fal
     return angles
 
 
-def joint_angles(start, goal, x, basis, order: int = 0):
+def joint_angle_array(start, goal, x, basis, order: int = 0):
     """``joint_angle_list`` stacked: shape (..., n_r, n_joints)."""
     return jnp.stack(joint_angle_list(start, goal, x, basis, order), axis=-1)
 
 
-def coefficients(start, goal, x, degree: int):
+def polynomial_coefficients(start, goal, x, degree: int):
     """Full polynomial coefficients ``a_0 .. a_d`` of each joint (paper eq. 10 for d = 6).
 
     Args:
@@ -221,7 +221,7 @@ def run_fold(fold: SampleFold, start, goal, x, degree: int, n_samples: int):
 
     One sample at a time keeps the working set to a few arrays of the batch size, which stay
     in cache; materialising (batch, n_samples) intermediates instead makes the kernel
-    memory-bound (about 3x slower at a batch of 1e5 on CPU).
+    memory-bound on CPU.
 
     Args:
       fold: the ``SampleFold``.
@@ -255,8 +255,9 @@ def sample_values(value: Callable, start, goal, x, degree: int, n_samples: int,
     each array with a leading axis of n_samples.
 
     Each value is written into the result one step late: written in the step that computes
-    it, XLA's CPU backend fused the computation into the write, and stage 0 of the certified
-    check ran about 1.7 times slower on polygon-field's recorded swarm.
+    it, XLA's CPU backend fused the computation into the write, which slowed stage 0 of the
+    certified check (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Windows
+    screened by their swing").
     """
     probe = Sample(jnp.int32(0), jnp.zeros((), x.dtype),
                    tuple((jnp.zeros(x.shape[:-1], x.dtype),) * start.shape[-1]
@@ -309,8 +310,9 @@ def distance_fold(x) -> SampleFold:
     )
 
 
-def travelling_distance(start, goal, x, degree: int, n_samples: int):
-    """``distance_fold`` on its own.
+def simpson_distance(start, goal, x, degree: int, n_samples: int):
+    """``distance_fold`` on its own: the travelling distance of the paths ``x`` by Simpson's
+    rule over ``n_samples`` points (``jaxarm.travelling_distance`` computes it for a problem).
 
     Args:
       start, goal: joint angles, shape (n_joints,).
@@ -321,3 +323,8 @@ def travelling_distance(start, goal, x, degree: int, n_samples: int):
       Array of shape (...,).
     """
     return run_fold(distance_fold(x), start, goal, x, degree, n_samples)
+
+
+# The kernel's former name, for ``jaxarm/checks/evaluate.py`` alone until its next edit there
+# calls ``simpson_distance`` (issue 72); nothing else may use it.
+travelling_distance = simpson_distance

@@ -19,8 +19,8 @@ from jaxarm.model.problem import Problem, as_params
 
 @functools.partial(jit, static_argnums=(0, 1), storable=True)
 def _travelling_distance(degree: int, n_samples: int, start, goal, rows):
-    """``path.travelling_distance`` of rows (B, n_free) -> (B,), compiled."""
-    return path.travelling_distance(start, goal, rows, degree, n_samples)
+    """``path.simpson_distance`` of rows (B, n_free) -> (B,), compiled."""
+    return path.simpson_distance(start, goal, rows, degree, n_samples)
 
 
 def travelling_distance(problem: Problem, x) -> jax.Array:
@@ -57,9 +57,9 @@ def joint_path(problem: Problem, x, r, order: int = 0) -> jax.Array:
     return _joint_angles(problem.arrays.start, problem.arrays.goal, x, basis, order=order)
 
 
-# One program per shape: run op by op, a call with a new shape compiled 8-12 small programs
-# (0.34-0.41 s, against 0.07-0.09 s compiled whole, in a fresh process).
-_joint_angles = jit(path.joint_angles, static_argnames="order")
+# One program per shape: run op by op, a call with a new shape compiled several small programs,
+# which took longer together than the one program compiled whole.
+_joint_angles = jit(path.joint_angle_array, static_argnames="order")
 
 
 def coefficients(problem: Problem, x) -> jax.Array:
@@ -69,5 +69,6 @@ def coefficients(problem: Problem, x) -> jax.Array:
       Array of shape (..., n_joints, degree + 1), ascending powers.
     """
     x = as_params(problem, x)
-    return path.coefficients(problem.arrays.start, problem.arrays.goal, x, problem.degree)
+    return path.polynomial_coefficients(problem.arrays.start, problem.arrays.goal, x,
+                                        problem.degree)
 

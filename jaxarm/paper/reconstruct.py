@@ -14,7 +14,7 @@ tables did (``jaxarm.paper.published``). Two facts make them usable:
   set that must be blocked); ``label_agreement`` scores any problem against the verdicts.
 
 Everything runs on jaxarm's own batched kernels; see ``benchmarks/reconstruct_scenarios.py`` for
-the runs that produced the shipped scenario files; ``jaxarm.paper.blocking`` adds the obstacles
+the runs that produced the shipped scenario files; ``benchmarks/blocking.py`` adds the obstacles
 that block case 1's paths better than the paper's runs found.
 """
 
@@ -69,7 +69,7 @@ def _worst_errors_fn(x: np.ndarray, published: np.ndarray, n_samples: int):
     x = jnp.asarray(x, jnp.float32)
 
     def worst(start, goal):
-        distance = path.travelling_distance(start, goal, x, 6, n_samples)
+        distance = path.simpson_distance(start, goal, x, 6, n_samples)
         return jnp.max(jnp.abs(1.0 / distance - published) / published)
 
     def pairs(starts, goals):  # (n_starts, n_goals), one start at a time to bound memory
@@ -140,8 +140,8 @@ def fit_postures(arm: Arm, end_points, sets: Sequence[PublishedSet], *, n_sample
     _, phi_start, phi_goal, elbows = best
     start = inverse_kinematics(arm, *start_xy, phi_start, elbows[0])
     goal = inverse_kinematics(arm, *goal_xy, phi_goal, elbows[1])
-    ours = 1.0 / np.asarray(path.travelling_distance(jnp.asarray(start), jnp.asarray(goal),
-                                                     jnp.asarray(x), 6, n_samples), np.float64)
+    ours = 1.0 / np.asarray(path.simpson_distance(jnp.asarray(start), jnp.asarray(goal),
+                                                  jnp.asarray(x), 6, n_samples), np.float64)
     return PostureFit(start, goal, float(phi_start), float(phi_goal), elbows[0], elbows[1],
                       ours, np.abs(ours - published) / published)
 

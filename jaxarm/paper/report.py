@@ -111,6 +111,25 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
     """
     began = time.perf_counter()
     # Every name and size is checked before the first study: a typo fails in a second.
+    n_restarts, suite, suite_restarts, degrees = _report_sizes(quick, n_restarts, suite,
+                                                               suite_restarts, degrees)
+    workers = _section_workers(workers)
+    out = output_folder("out_dir", out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    report = _Report(out)
+    sections = _report_sections(quick, n_restarts, suite, suite_restarts, degrees, progress)
+    _introduction(report, quick, workers, suite, degrees)
+    for part in _run_sections(sections, out, workers, log, began):
+        report.add(*part.lines)
+    report.add(f"Total time: {time.perf_counter() - began:.0f} s.")
+    path = report.write()
+    log(f"report written to {path} ({time.perf_counter() - began:.0f} s)")
+    return path
+
+
+def _report_sizes(quick: bool, n_restarts, suite, suite_restarts, degrees) -> tuple:
+    """``reproduce_paper``'s sizes checked, defaults filled in and the suite's scenarios loaded:
+    ``(n_restarts, suite problems, suite_restarts, degrees)``."""
     n_restarts = (positive_int("n_restarts", n_restarts) if n_restarts is not None
                   else (100 if quick else 500))
     if quick and suite is None and suite_restarts is not None:
@@ -130,16 +149,58 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
                for d in degrees]
     if len(set(degrees)) < len(degrees):
         raise ValueError(f"degrees must not repeat a degree, got {degrees}")
-    workers = _section_workers(workers)
-    out = output_folder("out_dir", out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    report = _Report(out)
+    return n_restarts, suite, suite_restarts, degrees
+
+
+def _report_sections(quick: bool, n_restarts: int, suite: list, suite_restarts: int,
+                     degrees: list, progress) -> list:
+    """The report's sections (``_Section``s) after its introduction, in the report's order;
+    those of an empty suite or no degrees left out."""
     chunk = _shared_chunk(n_restarts, suite_restarts if suite else None)
     # The paper's tables use the paper's check: collision-free at the 101 samples of r.
     case1, case2, case3 = (scenario_files.load_scenario(name, collision="sampled")
                            for name in ("paper-case-1", "paper-case-2", "paper-case-3"))
     # The rules section runs case 1 and death-trap as the suite runs its scenes.
     rules_problems = _suite_problems(["paper-case-1", "death-trap"])
+
+    def case_1(part: _Report) -> None:
+        methods = ["A", "B", "C", "A:feasibility", "B:feasibility", "C:feasibility"]
+        case1_study = study.escape_study(case1, methods, n_restarts=n_restarts, chunk_size=chunk,
+                                         progress=progress)
+        part.text("case1_study.json", case1_study.to_json())
+        part.text("case1_study.csv", case1_study.to_csv())
+        _table_2(part, case1_study)
+        _reconstruction_section(part, case1, case2, case1_study)
+        _escape_section(part, case1, case1_study)
+
+    def tables_3_to_6(part: _Report) -> None:
+        _table_3(part, case2, case3)
+        _tables_4_5(part, case2)
+        _table_6(part, case2)
+
+    def rules_and_case_2(part: _Report) -> None:
+        _rules_section(part, rules_problems, n_restarts, chunk, progress)
+        _feasible_set_section(part, case2)
+        _trajectory_section(part, case2)
+
+    sections = [
+        _Section(f"case 1: escape study, {n_restarts} seeds x 6 methods", case_1),
+        _Section("cases II and III (Table 3), Tables 4-6", tables_3_to_6),
+        _Section(f"beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine",
+                 lambda part: part.add(*_beyond_paper_section(
+                     [p.replace(collision="certified") for p in (case1, case2, case3)],
+                     20 if quick else 100, degrees)), long=True) if degrees else None,
+        _Section(f"constraint rules compared on case 1 and death-trap, {n_restarts} seeds each",
+                 rules_and_case_2),
+        _Section(f"shipped suite: {len(suite)} scenarios x {suite_restarts} seeds x 2 methods",
+                 lambda part: _suite(part, suite, suite_restarts, chunk, progress),
+                 long=True) if suite else None,
+    ]
+    return [section for section in sections if section is not None]
+
+
+def _introduction(report: _Report, quick: bool, workers: int, suite: list, degrees: list) -> None:
+    """The report's title and the paragraphs before its sections."""
     report.add(
         "# jaxarm: reproduction of Machmudah & Parman (2013)", "",
         f"Generated {datetime.datetime.now():%Y-%m-%d %H:%M} by `jaxarm reproduce-paper"
@@ -167,47 +228,6 @@ def reproduce_paper(out_dir="results", *, quick: bool = False, n_restarts: int |
         report.add(f"**Not in this run:** {' and '.join(left_out)}. Each of their scenes and "
                    "degrees compiles programs of its own; `jaxarm reproduce-paper` without "
                    "`--quick` runs them, and either flag adds its section here.", "")
-
-    def case_1(part: _Report) -> None:
-        methods = ["A", "B", "C", "A:feasibility", "B:feasibility", "C:feasibility"]
-        case1_study = study.escape_study(case1, methods, n_restarts=n_restarts, chunk_size=chunk,
-                                         progress=progress)
-        part.text("case1_study.json", case1_study.to_json())
-        part.text("case1_study.csv", case1_study.to_csv())
-        _table_2(part, case1_study)
-        _reconstruction_section(part, case1, case2, case1_study)
-        _escape_section(part, case1, case1_study)
-
-    def tables_3_to_6(part: _Report) -> None:
-        _table_3(part, case2, case3)
-        _tables_4_5(part, case2)
-        _table_6(part, case2)
-
-    def rules_and_case_2(part: _Report) -> None:
-        _rules_section(part, rules_problems, n_restarts, chunk, progress)
-        _feasible_set_section(part, case2)
-        _trajectory_section(part, case2)
-
-    sections = [
-        _Section(f"case 1: escape study, {n_restarts} seeds x 6 methods", case_1),
-        _Section("cases II and III (Table 3), Tables 4-6", tables_3_to_6),
-        _Section(f"beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine",
-                 lambda part: part.add(*beyond_paper_section(
-                     [p.replace(collision="certified") for p in (case1, case2, case3)],
-                     20 if quick else 100, degrees)), long=True) if degrees else None,
-        _Section(f"constraint rules compared on case 1 and death-trap, {n_restarts} seeds each",
-                 rules_and_case_2),
-        _Section(f"shipped suite: {len(suite)} scenarios x {suite_restarts} seeds x 2 methods",
-                 lambda part: _suite(part, suite, suite_restarts, chunk, progress),
-                 long=True) if suite else None,
-    ]
-    sections = [section for section in sections if section is not None]
-    for part in _run_sections(sections, out, workers, log, began):
-        report.add(*part.lines)
-    report.add(f"Total time: {time.perf_counter() - began:.0f} s.")
-    path = report.write()
-    log(f"report written to {path} ({time.perf_counter() - began:.0f} s)")
-    return path
 
 
 class _Section(NamedTuple):
@@ -438,7 +458,7 @@ def _reconstruction_section(report: _Report, case1, case2, case1_study) -> None:
         "keep every published feasible set clear, picked to block the most of the initial range "
         "and every published infeasible set; on case 1, further circles that keep Table 2's "
         "motions about 0.05 cm clear block every path above fitness 0.18 (the paper's best: "
-        "0.1774; `jaxarm.paper.blocking` proves none is free at the samples by branch and "
+        "0.1774; `benchmarks/blocking.py` proves none is free at the samples by branch and "
         "bound) and narrow the free set near the optimum; "
         "`benchmarks/reconstruct_scenarios.py` runs every step. One layout consistent with "
         "the paper's numbers, not the paper's own.", "",
@@ -877,7 +897,7 @@ def degree_refine_table(rows: list[dict]) -> list[str]:
     return lines
 
 
-def beyond_paper_section(problems, n_restarts: int, degrees=(6, 7, 8)) -> list[str]:
+def _beyond_paper_section(problems, n_restarts: int, degrees=(6, 7, 8)) -> list[str]:
     rows = compare_degrees_and_refine(share_capacities(problems), degrees, n_restarts=n_restarts)
     return [
         f"## Beyond the paper: degree {', '.join(map(str, degrees))} and PSO + refine "

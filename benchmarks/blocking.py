@@ -8,8 +8,8 @@ link at every time (``sweep_excursion``). There ``block_paths`` places the large
 keeps the gap from the published sweep, until every path given to it collides.
 ``free_paths_above`` looks for such paths (a grid and the default search), ``block_better_paths``
 alternates the two, and ``prove_blocked`` shows by branch and bound that none is left: every
-path above a threshold collides at a sample. ``benchmarks/reconstruct_scenarios.py`` runs them
-on case 1.
+path above a threshold collides at a sample. ``reconstruct_scenarios.py`` beside it runs them on
+case 1 (``tests/test_blocking.py`` imports this file by its path).
 """
 
 from __future__ import annotations
@@ -58,8 +58,9 @@ def _joint_positions_64(problem: Problem, x, r) -> np.ndarray:
     picked with this one, and the picks moved when both it and the slot counts of
     ``block_paths`` were changed (which of the two moved them was not tested)."""
     x = np.asarray(x, np.float64).reshape(-1, problem.n_free)
-    polynomial = path.coefficients(np.asarray(problem.start, np.float64),
-                                   np.asarray(problem.goal, np.float64), x, problem.degree)
+    polynomial = path.polynomial_coefficients(np.asarray(problem.start, np.float64),
+                                              np.asarray(problem.goal, np.float64), x,
+                                              problem.degree)
     theta = polynomial @ (np.asarray(r, np.float64)[:, None] ** np.arange(problem.degree + 1)).T
     absolute = np.cumsum(theta.transpose(0, 2, 1), axis=-1)  # (paths, times, joints)
     steps = np.asarray(problem.arm.lengths) * np.stack([np.cos(absolute), np.sin(absolute)], -1
@@ -293,7 +294,7 @@ def free_paths_above(problem: Problem, threshold: float, low, high, *, step: flo
     low, high = (np.broadcast_to(np.asarray(v, np.float64), (problem.n_free,)) for v in (low, high))
     axes = [np.arange(lo, hi + step / 2, step) for lo, hi in zip(low, high)]
     shape = tuple(len(a) for a in axes)
-    distance = jit(lambda x: path.travelling_distance(
+    distance = jit(lambda x: path.simpson_distance(
         jnp.asarray(problem.start, x.dtype), jnp.asarray(problem.goal, x.dtype), x,
         problem.degree, problem.n_samples))
     found, n_grid = [np.zeros((0, problem.n_free))], 0
@@ -370,8 +371,8 @@ def _depth_margin_fn(problem: Problem):
     r = np.linspace(0.0, 1.0, problem.n_samples)
 
     def margin(x, h):
-        theta = path.joint_angles(jnp.asarray(problem.start), jnp.asarray(problem.goal), x,
-                                  path.basis_values(problem.degree, r))  # (n, samples, joints)
+        theta = path.joint_angle_array(jnp.asarray(problem.start), jnp.asarray(problem.goal),
+                                       x, path.basis_values(problem.degree, r))  # (n, s, joints)
         joints = joint_positions(jnp.asarray(problem.arm.lengths), theta)  # (n, s, j + 1, 2)
         a, b = joints[..., :-1, :], joints[..., 1:, :]  # (n, s, links, 2)
         centres = jnp.asarray(circles[:, :2]).reshape(1, 1, 1, -1, 2)
@@ -435,8 +436,8 @@ def prove_blocked(problem: Problem, threshold: float, low, high, *, half_width: 
         margin = _depth_margin_fn(problem)
         start = jnp.asarray(problem.start, jnp.float64)
         goal = jnp.asarray(problem.goal, jnp.float64)
-        distance = jit(lambda x: path.travelling_distance(start, goal, x, problem.degree,
-                                                          problem.n_samples))
+        distance = jit(lambda x: path.simpson_distance(start, goal, x, problem.degree,
+                                                       problem.n_samples))
         axes = [np.arange(lo + half_width, hi + half_width, 2 * half_width)
                 for lo, hi in zip(low, high)]
         cells = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, problem.n_free)
