@@ -95,8 +95,8 @@ def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows,
     # Separate loops for distance and collision: one scan carrying both was no faster, and
     # slower for the certified check at small batches (XLA splits a bigger loop body into
     # more fusions).
-    distance = path.travelling_distance(arrays.start, arrays.goal, rows, spec.degree,
-                                        spec.n_samples)
+    distance = path.simpson_distance(arrays.start, arrays.goal, rows, spec.degree,
+                                     spec.n_samples)
     check = limits = None
     if spec.collision == "sampled":
         violation = path.run_fold(

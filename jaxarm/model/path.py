@@ -323,8 +323,3 @@ def simpson_distance(start, goal, x, degree: int, n_samples: int):
       Array of shape (...,).
     """
     return run_fold(distance_fold(x), start, goal, x, degree, n_samples)
-
-
-# The kernel's former name, for ``jaxarm/checks/evaluate.py`` alone until its next edit there
-# calls ``simpson_distance`` (issue 72); nothing else may use it.
-travelling_distance = simpson_distance

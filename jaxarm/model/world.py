@@ -48,8 +48,8 @@ _POLYGON_FIELDS = ("vertices", "normals", "extent_low", "extent_high", "edge_val
 
 def slot_capacity(count: int) -> int:
     """0 for none (the kernel for that shape is skipped), else the smallest power of two >=
-    count: layouts of similar size share one program (``jaxarm.paper.blocking``'s added
-    obstacles)."""
+    count: layouts of similar size share one program (the added obstacles of
+    ``benchmarks/blocking.py``)."""
     return 0 if count == 0 else 1 << (count - 1).bit_length()
 
 
