@@ -3,6 +3,7 @@
 import math
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from hypothesis import given
@@ -66,3 +67,23 @@ def test_float32_sincos_is_accurate_over_a_wide_range():
     reference = angle.astype(np.float64)
     assert np.abs(np.asarray(sine) - np.sin(reference)).max() < 5e-7
     assert np.abs(np.asarray(cosine) - np.cos(reference)).max() < 5e-7
+
+
+@pytest.mark.parametrize("form", [list, tuple, np.asarray, jnp.asarray])
+def test_joint_positions_takes_any_sequence_of_numbers(form):
+    expected = np.asarray(jaxarm.joint_positions(np.array([30.0, 30.0, 20.0]),
+                                                 np.array([0.1, 0.2, 0.3])))
+    np.testing.assert_array_equal(
+        jaxarm.joint_positions(form([30, 30, 20]), form([0.1, 0.2, 0.3])), expected)
+    np.testing.assert_allclose(expected[-1], [75.01693, 23.153458], rtol=1e-6)
+
+
+def test_joint_positions_of_one_link_takes_one_number_and_names_bad_shapes():
+    np.testing.assert_allclose(jaxarm.joint_positions([30], 0.5),
+                               [[0.0, 0.0], [30 * np.cos(0.5), 30 * np.sin(0.5)]], rtol=1e-6)
+    with pytest.raises(ValueError, match=r"theta must have shape \(\.\.\., 2\) for 2 links"):
+        jaxarm.joint_positions([30, 30], [0.1])
+    with pytest.raises(ValueError, match="theta must be real numbers, got 'a'"):
+        jaxarm.joint_positions([30], "a")
+    with pytest.raises(ValueError, match=r"lengths must have shape \(n_joints,\)"):
+        jaxarm.joint_positions([[30]], [0.1])

@@ -226,9 +226,12 @@ def test_joint_path_checks_the_order_and_the_times(case2):
         with pytest.raises(ValueError, match=rf"order must be 0, 1, 2 or 3, got {order}"):
             jaxarm.joint_path(case2, x, [0.5], order=order)
     for r in ([-0.1, 0.5], [0.5, 1.2], [[0.5]], [float("nan")]):
-        with pytest.raises(ValueError, match=r"r must be a 1-D array of normalised times"):
+        with pytest.raises(ValueError, match=r"r must be normalised times in \[0, 1\]"):
             jaxarm.joint_path(case2, x, r)
     assert jaxarm.joint_path(case2, x, [0.0, 1.0], order=3).shape == (2, 3)
+    # one time, as a number: the path's angles there, without the times axis
+    np.testing.assert_array_equal(jaxarm.joint_path(case2, x, 0.25),
+                                  jaxarm.joint_path(case2, x, [0.25])[0])
 
 
 def test_vmapped_evaluate_folds_the_mapped_axis_and_agrees(case2, rng):
@@ -310,3 +313,21 @@ def test_problems_of_one_arm_share_the_posture_check_program():
         jaxarm.Problem(arm=jaxarm.Arm(lengths), start=[0.0, 0.5, 0.5], goal=[1.5, 0.5, 0.5],
                        world=world)
     assert problem_lib._posture_depth.programs_made() - before <= 1
+
+
+@pytest.mark.parametrize("form", [list, tuple, np.asarray, jnp.asarray])
+def test_public_functions_take_any_sequence_of_numbers(case2, form):
+    """Lists, tuples, NumPy and JAX arrays give the same answers wherever a path is taken."""
+    x = [66.7388, -28.1028, -9.8855]
+    reference = np.asarray(x, np.float32)
+    for function in (jaxarm.fitness, jaxarm.violation, jaxarm.travelling_distance,
+                     jaxarm.coefficients):
+        np.testing.assert_array_equal(function(case2, form(x)), function(case2, reference))
+    np.testing.assert_array_equal(jaxarm.joint_path(case2, form(x), form([0.0, 0.5])),
+                                  jaxarm.joint_path(case2, reference, np.array([0.0, 0.5])))
+    np.testing.assert_allclose(jaxarm.raise_degree(form(x), 3, 8),  # keeps x's dtype
+                               jaxarm.raise_degree(reference, 3, 8), rtol=1e-6)
+    trajectory = jaxarm.Trajectory(case2, form(x), 2.0)
+    np.testing.assert_array_equal(trajectory.at(form([0.0, 1.0])).position,
+                                  jaxarm.Trajectory(case2, reference, 2.0).at(
+                                      np.array([0.0, 1.0])).position)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import functools
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from jaxarm._compile.jit import jit
@@ -40,21 +41,31 @@ def joint_path(problem: Problem, x, r, order: int = 0) -> jax.Array:
 
     Args:
       x: free parameters, shape (..., n_free).
-      r: normalised times in [0, 1], shape (n_r,).
+      r: normalised times in [0, 1], shape (n_r,), or one time (a number).
       order: derivative order, 0 to 3.
 
     Returns:
-      Array of shape (..., n_r, n_joints).
+      Array of shape (..., n_r, n_joints), or (..., n_joints) for one time.
+
+    Examples:
+      >>> problem = jaxarm.load_scenario("paper-case-2")
+      >>> jaxarm.joint_path(problem, [66.7388, -28.1028, -9.8855], 0.0).shape
+      (3,)
     """
     x = as_params(problem, x)
     if isinstance(order, bool) or order not in range(4):
         raise ValueError(f"order must be 0, 1, 2 or 3, got {order!r}")
-    if not isinstance(r, jax.Array):
-        r = np.asarray(r, dtype=np.float64)
+    one_time = np.ndim(r) == 0
+    if isinstance(r, jax.Array):
+        r = jnp.atleast_1d(r)
+    else:
+        r = np.atleast_1d(np.asarray(r, dtype=np.float64))
         if r.ndim != 1 or not np.all((r >= 0.0) & (r <= 1.0)):
-            raise ValueError(f"r must be a 1-D array of normalised times in [0, 1], got {r!r}")
+            raise ValueError(f"r must be normalised times in [0, 1], one or a 1-D array, "
+                             f"got {r!r}")
     basis = path.basis_values(problem.degree, r, order)
-    return _joint_angles(problem.arrays.start, problem.arrays.goal, x, basis, order=order)
+    angles = _joint_angles(problem.arrays.start, problem.arrays.goal, x, basis, order=order)
+    return angles[..., 0, :] if one_time else angles
 
 
 # One program per shape: run op by op, a call with a new shape compiled several small programs,
