@@ -99,7 +99,9 @@ def basis_values(degree: int, r, order: int = 0, r_powers=None):
         return r_powers @ coefficients.T
     # Unrolled over the powers: elementwise work fuses, a contraction over 7 terms does not.
     coefficients = jnp.asarray(coefficients, dtype=r_powers.dtype)
-    return sum(r_powers[..., k, None] * coefficients[:, k] for k in range(degree + 1))
+    leading = (1,) * (r_powers.ndim - 1)  # the same rank on both sides
+    return sum(r_powers[..., k, None] * coefficients[:, k].reshape(leading + (-1,))
+               for k in range(degree + 1))
 
 
 def raise_degree(x, n_joints: int, degree: int):
