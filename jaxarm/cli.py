@@ -13,6 +13,7 @@ import argparse
 import contextlib
 import io
 import json
+import logging
 import os
 import pathlib
 import re
@@ -97,6 +98,8 @@ def _add_common_options(parser: argparse.ArgumentParser) -> None:
     # SUPPRESS: given after the subcommand it sets the flag, absent it keeps the main parser's
     parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                         help="show tracebacks on errors")
+    parser.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                        help="no notices on stderr while programs compile")
 
 
 def _add_search_options(parser: argparse.ArgumentParser) -> None:
@@ -134,6 +137,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"jaxarm {_version()}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument("--quiet", action="store_true",
+                        help="no notices on stderr while programs compile")
     parser.add_argument("--no-cache", action="store_true",
                         help="do not keep compiled and traced programs on disk (default: keep "
                              "them in $JAXARM_CACHE_DIR, else ~/.cache/jaxarm/xla)")
@@ -541,7 +546,24 @@ def _join_processes(args) -> bool:
     return jax.process_index() == 0
 
 
+def _compile_notices(quiet: bool) -> None:
+    """Say on stderr when one of jaxarm's programs compiles (``jaxarm._compile.timing``): a
+    first call can take minutes, and should not be a silent one."""
+    logger = logging.getLogger("jaxarm.compile")
+    logger.setLevel(logging.WARNING if quiet else logging.INFO)
+    if not any(isinstance(handler, _Stderr) for handler in logger.handlers):
+        logger.addHandler(_Stderr())
+
+
+class _Stderr(logging.Handler):
+    """Writes to whatever ``sys.stderr`` is at the time (a test may have replaced it)."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        print(f"jaxarm: {record.getMessage()}", file=sys.stderr, flush=True)
+
+
 def _run(args) -> None:
+    _compile_notices(args.quiet)
     if not args.no_cache:
         from jaxarm._compile.cache import enable_compilation_cache
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import pathlib
 import time
 from typing import NamedTuple
 
@@ -12,6 +13,7 @@ import numpy as np
 from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import certify
 from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS
+from jaxarm.io.files import write_or_return
 from jaxarm.model.problem import Problem
 from jaxarm.optim import evosax_adapter, pso
 from jaxarm.optim.methods import parse_method
@@ -150,9 +152,10 @@ class Result(NamedTuple):
                             else pso.PSOConfig(**config))
         return cls(restarts=restarts, **fields)
 
-    def to_json(self) -> str:
-        """``to_dict()`` as strict JSON text."""
-        return json.dumps(self.to_dict(), allow_nan=False)
+    def to_json(self, path=None) -> str | pathlib.Path:
+        """``to_dict()`` as strict JSON: the text, or written to ``path`` (a path or an open
+        text file; then that is returned)."""
+        return write_or_return(path, json.dumps(self.to_dict(), allow_nan=False))
 
     @classmethod
     def from_json(cls, text: str) -> Result:

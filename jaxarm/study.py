@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import pathlib
 import sys
 import time
 from typing import NamedTuple, Sequence
@@ -17,8 +18,10 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from jaxarm._compile.padding import equal_chunk_length
+from jaxarm._compile.timing import compile_time
 from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import fitness
+from jaxarm.io.files import write_or_return
 from jaxarm.model.problem import Problem
 from jaxarm.optim.methods import Variant, parse_methods
 from jaxarm.optim.restarts import (
@@ -58,6 +61,8 @@ class MethodStudy(NamedTuple):
     restart_ids: np.ndarray  # shape=(n_restarts,), the restart index of each row
     outcome: RestartOutcome  # NumPy arrays with leading axis n_restarts
     seconds: float  # wall time, compilation included
+    compile_seconds: float  # of which tracing, lowering and compiling programs (or loading
+    #   them from the persistent compilation cache): ``jaxarm._compile.timing``
 
     @property
     def n_restarts(self) -> int:
@@ -117,6 +122,7 @@ class MethodStudy(NamedTuple):
             "fitness_median": fitness_q[0],
             "fitness_best": fitness_q[1],
             "seconds": self.seconds,
+            "compile_seconds": self.compile_seconds,
         }
 
 
@@ -155,12 +161,15 @@ class Study(NamedTuple):
 
     def table(self, pairwise: bool = False) -> str:
         """Markdown table: escape rate with 95 % CI (its header names the collision check),
-        escape-iteration quartiles, fitness; with ``pairwise``, a second table of every pair's
-        difference in escape rate (``compare``)."""
+        escape-iteration quartiles, fitness, and each method's time spent running apart from
+        the time spent compiling (the first method to use a program compiles it; the others
+        reuse it); with ``pairwise``, a second table of every pair's difference in escape rate
+        (``compare``)."""
         lines = [
             f"| method | constraint | escaped | escape rate, {self.collision} check [95 % CI] "
-            "| escape iter median [q1, q3] | best fitness median / max | time (s) |",
-            "|---|---|---|---|---|---|---|",
+            "| escape iter median [q1, q3] | best fitness median / max | run (s) | "
+            "compile (s) |",
+            "|---|---|---|---|---|---|---|---|",
         ]
         fmt = lambda v, spec: "–" if v is None else format(v, spec)  # noqa: E731
         for method in self.methods:
@@ -170,7 +179,8 @@ class Study(NamedTuple):
                 f"{s['escape_rate']:.1%} [{s['ci95_low']:.1%}, {s['ci95_high']:.1%}] | "
                 f"{fmt(s['escape_iter_median'], '.0f')} [{fmt(s['escape_iter_q1'], '.0f')}, "
                 f"{fmt(s['escape_iter_q3'], '.0f')}] | {fmt(s['fitness_median'], '.4f')} / "
-                f"{fmt(s['fitness_best'], '.4f')} | {s['seconds']:.1f} |"
+                f"{fmt(s['fitness_best'], '.4f')} | "
+                f"{s['seconds'] - s['compile_seconds']:.1f} | {s['compile_seconds']:.1f} |"
             )
         if pairwise and len(self.methods) > 1:
             lines += ["", "| comparison | difference in escape rate [95 % CI] | Fisher p |",
@@ -179,9 +189,11 @@ class Study(NamedTuple):
                       for c in self.comparisons()]
         return "\n".join(lines)
 
-    def to_json(self) -> str:
-        """Summaries, settings and escape curves as JSON."""
-        return json.dumps({
+    def to_json(self, path=None) -> str | pathlib.Path:
+        """Summaries, settings and escape curves as JSON: the text, or written to ``path`` (a
+        path or an open text file; then that path is returned), as ``to_csv`` and
+        ``Trajectory.to_csv`` do."""
+        return write_or_return(path, json.dumps({
             "problem": self.problem_name,
             "collision": self.collision,
             "n_particles": self.n_particles,
@@ -192,7 +204,7 @@ class Study(NamedTuple):
                 for m in self.methods
             ],
             "comparisons": [c._asdict() for c in self.comparisons()],
-        }, indent=2)
+        }, indent=2))
 
     def records(self) -> list[dict]:
         """Tidy per-seed rows: one per (method, restart). Restart ``restart`` is seeded by
@@ -216,14 +228,15 @@ class Study(NamedTuple):
                 })
         return rows
 
-    def to_csv(self) -> str:
-        """``records()`` as CSV text."""
+    def to_csv(self, path=None) -> str | pathlib.Path:
+        """``records()`` as CSV: the text, or written to ``path`` (a path or an open text file;
+        then that path is returned)."""
         rows = self.records()
         out = io.StringIO()
         writer = csv.DictWriter(out, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-        return out.getvalue()
+        return write_or_return(path, out.getvalue())
 
 
 CHUNK_SIZE = 500  # seeds per compiled call of ``escape_study`` unless told
@@ -274,19 +287,21 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
         bar.set_description(f"{problem.name} {variant.label}")
         began = time.perf_counter()
         parts = []
-        for start in range(0, n_restarts, size):
-            compiling = not is_compiled(problem, variant.config, n_particles, n_iters, size)
-            bar.set_postfix_str("compiling" if compiling else "")
-            # every chunk runs ``size`` restarts (one program); the last keeps what it needs
-            keep = min(size, n_restarts - start)
-            outcome = run_restarts(problem, variant.config, variant.constraint,
-                                   n_particles=n_particles, n_iters=n_iters, seed=seed,
-                                   first_restart=start, n_restarts=size)
-            parts.append(RestartOutcome(*(field[:keep] for field in outcome)))
-            bar.update(keep)
+        with compile_time() as compiling_time:
+            for start in range(0, n_restarts, size):
+                compiling = not is_compiled(problem, variant.config, n_particles, n_iters, size)
+                bar.set_postfix_str("compiling" if compiling else "")
+                # every chunk runs ``size`` restarts (one program); the last keeps what it needs
+                keep = min(size, n_restarts - start)
+                outcome = run_restarts(problem, variant.config, variant.constraint,
+                                       n_particles=n_particles, n_iters=n_iters, seed=seed,
+                                       first_restart=start, n_restarts=size)
+                parts.append(RestartOutcome(*(field[:keep] for field in outcome)))
+                bar.update(keep)
         results.append(MethodStudy(variant=variant, restart_ids=np.arange(n_restarts),
                                    outcome=parts[0].concatenate(*parts[1:]),
-                                   seconds=time.perf_counter() - began))
+                                   seconds=time.perf_counter() - began,
+                                   compile_seconds=compiling_time.seconds))
     bar.close()
     return Study(problem.name, problem.collision, n_particles, n_iters, seed, tuple(results))
 

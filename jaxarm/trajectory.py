@@ -22,6 +22,7 @@ NumPy, the torques with ``jaxarm.model.dynamics`` (jit-compiled, under ``jax.ena
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import pathlib
@@ -32,6 +33,7 @@ import numpy as np
 from numpy.polynomial import polynomial as poly
 
 from jaxarm._validate import finite_scalar, finite_vector, positive_scalar, representable
+from jaxarm.io.files import write_or_return
 from jaxarm.model import dynamics, path
 from jaxarm.model.problem import Problem
 
@@ -145,26 +147,24 @@ class Trajectory:
                 columns[f"{prefix}{joint + 1}"] = values[:, joint]
         return columns
 
-    def to_csv(self, path_or_file, rate: float = 100.0) -> pathlib.Path:
-        """Write ``table(rate)`` as CSV (a header line, then one row per time); returns the
-        path. Units: s, rad, rad/s, rad/s^2, N m."""
+    def to_csv(self, path_or_file=None, rate: float = 100.0) -> str | pathlib.Path:
+        """``table(rate)`` as CSV (a header line, then one row per time): the text, or written
+        to ``path_or_file`` (a path or an open text file; then that is returned). Units: s,
+        rad, rad/s, rad/s^2, N m."""
         columns = self.table(rate)
-        path_or_file = pathlib.Path(path_or_file)
-        np.savetxt(path_or_file, np.column_stack(list(columns.values())), delimiter=",",
+        out = io.StringIO()
+        np.savetxt(out, np.column_stack(list(columns.values())), delimiter=",",
                    header=",".join(columns), comments="", fmt="%.10g")
-        return path_or_file
+        return write_or_return(path_or_file, out.getvalue())
 
-    def to_json(self, path_or_file=None, rate: float = 100.0) -> str:
+    def to_json(self, path_or_file=None, rate: float = 100.0) -> str | pathlib.Path:
         """The trajectory as JSON: problem name, x, duration, rate, units and ``table(rate)``'s
-        columns; written to ``path_or_file`` too when given."""
+        columns: the text, or written to ``path_or_file`` (then that is returned)."""
         record = {"problem": self.problem.name, "x": self.x.tolist(),
                   "duration": self.duration, "rate": float(rate),
                   "units": {"t": "s", "q": "rad", "dq": "rad/s", "ddq": "rad/s^2", "tau": "N m"},
                   "columns": {name: values.tolist() for name, values in self.table(rate).items()}}
-        text = json.dumps(record, indent=1, allow_nan=False)
-        if path_or_file is not None:
-            pathlib.Path(path_or_file).write_text(text, encoding="utf-8")
-        return text
+        return write_or_return(path_or_file, json.dumps(record, indent=1, allow_nan=False))
 
     def peaks(self) -> dict[str, np.ndarray]:
         """Peak ``|velocity|``, ``|acceleration|``, ``|jerk|`` over the motion, each shape

@@ -103,3 +103,47 @@ def test_feasible_map_colours_free_paths_and_greys_colliding_ones(case2):
                             (dict(bounds=((1, 0), (0, 1))), "bounds must be")):
         with pytest.raises(ValueError, match=message):
             plot.plot_feasible_map(case2, x, **kwargs)
+
+
+def _synthetic_study(labels, n_restarts=100, n_iters=100):
+    """A study of the given method labels with made-up outcomes (no search runs)."""
+    from jaxarm.optim.methods import parse_method
+    from jaxarm.optim.restarts import RestartOutcome
+
+    rng = np.random.default_rng(0)
+    methods = []
+    for label in labels:
+        escape = np.where(rng.random(n_restarts) < 0.6, rng.integers(0, n_iters, n_restarts), -1)
+        history = np.where(np.arange(n_iters + 1) >= np.where(escape < 0, n_iters + 1,
+                                                              escape)[:, None], 0.2, 0.0)
+        outcome = RestartOutcome(np.zeros((n_restarts, 3)), history[:, -1],
+                                 np.where(escape < 0, 1.0, 0.0), escape.astype(np.int32),
+                                 np.zeros((n_restarts, 3)), history)
+        methods.append(study.MethodStudy(parse_method(label), np.arange(n_restarts), outcome,
+                                         1.0, 0.5))
+    return study.Study("death-trap", "certified", 20, n_iters, 0, tuple(methods))
+
+
+SIX_METHODS = ["A:feasibility", "B:feasibility", "A-ring[inertia_end=0.4]:feasibility", "C",
+               "A-global-ring:epsilon", "B:penalty"]
+
+
+@pytest.mark.parametrize("n_methods", range(1, 7))
+def test_every_text_of_a_study_figure_lies_inside_it(n_methods):
+    """Titles, labels, tick labels and legends of the study figures, for one to six methods."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    escape = _synthetic_study(SIX_METHODS[:n_methods])
+    for figure in (plot.plot_escape_rates(escape), plot.plot_escape_curves(escape)):
+        FigureCanvasAgg(figure)
+        renderer = figure.canvas.get_renderer()
+        figure.draw(renderer)
+        box = figure.bbox
+        texts = [text for text in figure.findobj(lambda artist: hasattr(artist, "get_text"))
+                 if text.get_visible() and text.get_text().strip()]
+        assert any("escape" in text.get_text() for text in texts)  # the title is drawn
+        for text in texts:
+            extent = text.get_window_extent(renderer)
+            assert (extent.x0 >= box.x0 - 0.5 and extent.x1 <= box.x1 + 0.5
+                    and extent.y0 >= box.y0 - 0.5 and extent.y1 <= box.y1 + 0.5), (
+                f"{text.get_text()!r} at {extent} outside {box}")

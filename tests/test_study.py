@@ -179,3 +179,34 @@ def test_study_rows_have_unique_labels_and_feasibility_comes_from_the_violation(
 def test_bad_study_arguments_name_the_field(case2, methods, kwargs, message):
     with pytest.raises(ValueError, match=message):
         study.escape_study(case2, methods, n_restarts=2, **kwargs)
+
+
+def test_every_export_writes_to_a_path_and_returns_text_without_one(tmp_path, case2):
+    """One convention for ``Study``, ``Result`` and ``Trajectory``: a path (or an open file)
+    writes, no path returns the text."""
+    import io
+
+    study = jaxarm.escape_study(case2, ["A", "B"], n_restarts=4, n_iters=5, n_particles=6)
+    result = jaxarm.solve(case2, "A", n_restarts=2, n_iters=5, n_particles=6)
+    trajectory = jaxarm.Trajectory(case2, result.best_x, 2.0)
+    for name, export in [("study.csv", study.to_csv), ("study.json", study.to_json),
+                         ("result.json", result.to_json), ("trajectory.csv", trajectory.to_csv),
+                         ("trajectory.json", trajectory.to_json)]:
+        text = export()
+        assert isinstance(text, str) and text
+        assert export(tmp_path / name) == tmp_path / name
+        assert (tmp_path / name).read_bytes() == text.encode()
+        buffer = io.StringIO()
+        assert export(buffer) is buffer and buffer.getvalue() == text
+    with pytest.raises(ValueError, match="does not exist"):
+        study.to_csv(tmp_path / "missing" / "study.csv")
+
+
+def test_the_table_shows_run_and_compile_time_apart(case2):
+    study = jaxarm.escape_study(case2, ["A", "B"], n_restarts=4, n_iters=5, n_particles=6)
+    header = study.table().splitlines()[0]
+    assert "run (s)" in header and "compile (s)" in header
+    for method in study.methods:
+        assert 0.0 <= method.compile_seconds <= method.seconds
+        summary = method.summary()
+        assert summary["compile_seconds"] == method.compile_seconds

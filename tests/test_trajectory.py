@@ -125,8 +125,10 @@ def test_export_to_csv_and_json(problem, tmp_path):
     state = traj.at(rows[:, 0])
     np.testing.assert_allclose(rows[:, 1:4], state.position, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(rows[:, 10:], traj.torques(rows[:, 0]), rtol=1e-9, atol=1e-9)
-    record = json.loads(traj.to_json(tmp_path / "t.json", rate=50.0))
+    assert traj.to_json(tmp_path / "t.json", rate=50.0) == tmp_path / "t.json"
+    record = json.loads(traj.to_json(rate=50.0))  # no path: the text
     assert record == json.loads((tmp_path / "t.json").read_text())
+    assert traj.to_csv(rate=50.0) == path.read_text()
     assert record["duration"] == 1.234 and record["problem"] == "paper-case-2"
     np.testing.assert_allclose(record["columns"]["dq2"], rows[:, 5], rtol=1e-9, atol=1e-12)
     massless = jaxarm.Trajectory(problem.replace(arm=jaxarm.Arm(problem.arm.lengths)), PAPER_X,

@@ -17,12 +17,13 @@ import threading
 
 import jax
 
-from jaxarm._compile import stored_programs
+from jaxarm._compile import stored_programs, timing
 
 CPU_COMPILER_OPTIONS = {"xla_backend_optimization_level": 1}
 
 
-def jit(fun=None, *, storable: bool = False, level_flag: str | None = None, **options):
+def jit(fun=None, *, storable: bool = False, level_flag: str | None = None,
+        label: str | None = None, **options):
     """``jax.jit(fun, **options)``, compiled with ``CPU_COMPILER_OPTIONS`` when JAX runs on CPU.
 
     The backend is read at the first call (so after ``jax.distributed.initialize()``, which must
@@ -41,9 +42,15 @@ def jit(fun=None, *, storable: bool = False, level_flag: str | None = None, **op
     their compilation. The caller decides; this layer knows nothing of what the program holds.
     ``lower`` and ``trace`` choose by their arguments as calls do; other attributes of the
     ``jax.jit`` are those of its ``CPU_COMPILER_OPTIONS`` program.
+
+    ``label`` (what users would call the program, "the search"): the ``jaxarm.compile`` logger
+    says when it starts and ends compiling (``jaxarm._compile.timing``).
     """
     if fun is None:
-        return functools.partial(jit, storable=storable, level_flag=level_flag, **options)
+        return functools.partial(jit, storable=storable, level_flag=level_flag, label=label,
+                                 **options)
+    if label is not None:
+        timing.announce(fun.__name__, label)
     return _Program(fun, options, storable, level_flag)
 
 

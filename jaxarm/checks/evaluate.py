@@ -179,7 +179,7 @@ def vmapped_evaluate(spec: ProblemSpec):
     return evaluate_with_request
 
 
-@functools.partial(jit, static_argnums=0, storable=True)
+@functools.partial(jit, static_argnums=0, storable=True, label="the collision check")
 def _evaluate_and_certify(spec: ProblemSpec, arrays: ProblemArrays, rows):
     """``evaluate`` of paths ``rows``, shape (B, n_free), and for a certified spec their
     ``Certificate`` from the same check (else None): one compiled program per spec and batch

@@ -68,6 +68,21 @@ def written(path) -> Iterator[pathlib.Path]:
         temporary.unlink(missing_ok=True)
 
 
+def write_or_return(path_or_file, text: str):
+    """The one convention of every ``to_csv`` / ``to_json``: without a destination, ``text``;
+    with a path, the file written whole (``written``) and its ``Path`` returned; with an open
+    text file, ``text`` written to it and the file returned."""
+    if path_or_file is None:
+        return text
+    if hasattr(path_or_file, "write"):
+        path_or_file.write(text)
+        return path_or_file
+    path = output_file("path", path_or_file)
+    with written(path) as temporary:
+        temporary.write_text(text, encoding="utf-8", newline="")  # exactly these bytes
+    return path
+
+
 def _special(path: pathlib.Path) -> bool:
     """Whether ``path`` exists and is neither a regular file nor a folder (a device, a pipe)."""
     return path.exists() and not path.is_file() and not path.is_dir()

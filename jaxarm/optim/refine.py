@@ -178,7 +178,8 @@ def _refine_rows(spec, arrays, x, optimizer, n_steps, barrier_weight, margin, te
 DEFAULT_OPTIMIZER = optax.adam(0.2)
 REFINE_BLOCK = 16  # the smallest padded batch
 
-_compiled_refine = jit(_refine_rows, static_argnums=(0, 3, 4), storable=True)
+_compiled_refine = jit(_refine_rows, static_argnums=(0, 3, 4), storable=True,
+                       label="refine")
 
 
 def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weight: float = 1.0,

@@ -187,7 +187,7 @@ def path_measurement(spec: ProblemSpec, arrays: ProblemArrays):
 compiled_search = jit(
     search_restarts, static_argnames=("spec", "rules", "n_particles", "n_iters",
                                       "xla_default_level"),
-    storable=True, level_flag="xla_default_level",
+    storable=True, level_flag="xla_default_level", label="the search",
 )
 
 
