@@ -16,6 +16,8 @@
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 from matplotlib import patches
 from matplotlib.animation import FuncAnimation, PillowWriter
@@ -36,6 +38,23 @@ def _axes(ax, figsize=(5.5, 4.5)):
         return ax.figure, ax
     figure = Figure(figsize=figsize, layout="constrained")
     return figure, figure.add_subplot()
+
+
+def _fit_title(ax, text: str) -> None:
+    """``ax.set_title(text)``, broken into lines where the figure is too narrow for it: the
+    figure is laid out (no pixels drawn) and the title wrapped shorter until all of it lies
+    inside the figure, at most four times."""
+    ax.set_title(text)
+    figure = ax.figure
+    inside = figure.bbox.padded(-2.0)
+    width = len(text)
+    for _ in range(4):
+        figure.draw_without_rendering()
+        extent = ax.title.get_window_extent()
+        if extent.x0 >= inside.x0 and extent.x1 <= inside.x1:
+            return
+        width = max(12, int(width * min(inside.width / extent.width, 0.9)))
+        ax.set_title(textwrap.fill(text, width))
 
 
 def draw_world(ax, world) -> None:
@@ -161,8 +180,8 @@ def plot_escape_rates(study, ax=None, title: str | None = None):
     ax.legend(handles=[patches.Patch(color=palette[r][0], label=palette[r][1])
                        for r in dict.fromkeys(rules)], fontsize=8, loc="upper left",
               bbox_to_anchor=(1.0, 1.0))  # beside the axes: bars reach 1.0 on either side
-    ax.set_title(title or f"{study.problem_name}: escape within {study.n_iters} iterations "
-                          f"({study.methods[0].n_restarts} seeds, {study.collision} check)")
+    _fit_title(ax, title or f"{study.problem_name}: escape within {study.n_iters} iterations "
+                            f"({study.methods[0].n_restarts} seeds, {study.collision} check)")
     return figure
 
 
@@ -192,7 +211,7 @@ def plot_evolving_gains(ours: dict, paper: dict, ax=None, title: str | None = No
     handles, names = ax.get_legend_handles_labels()  # boxplot's label= needs matplotlib 3.9
     ax.legend([boxes["boxes"][0], *handles], ["ours: escaped seeds", *names], fontsize=8,
               loc="best")
-    ax.set_title(title or "Fitness gained between escape and the last iteration")
+    _fit_title(ax, title or "Fitness gained between escape and the last iteration")
     return figure
 
 
@@ -214,8 +233,8 @@ def plot_escape_curves(study, ax=None, title: str | None = None):
     ax.set_xlabel("iteration")
     ax.set_ylabel("fraction escaped (95 % band)")
     ax.legend(fontsize=8)
-    ax.set_title(title or f"{study.problem_name}: escape by iteration "
-                          f"({study.methods[0].n_restarts} seeds, {study.collision} check)")
+    _fit_title(ax, title or f"{study.problem_name}: escape by iteration "
+                            f"({study.methods[0].n_restarts} seeds, {study.collision} check)")
     return figure
 
 
