@@ -454,7 +454,7 @@ def _solve(args) -> None:
     result = solve(problem, args.method, **settings)
     print(f"{problem.name}: {result.n_restarts} restart(s) x {args.particles} particles x "
           f"{args.iters} iterations")
-    print(result.summary())
+    print(result.summary(flags=True))
     if args.json:  # solve(problem, method, **settings) repeats it (method null: the default)
         record = json.dumps(run_record(problem, args.method, settings, result), indent=2,
                             allow_nan=False)

@@ -12,7 +12,7 @@ import numpy as np
 
 from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import certify
-from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS
+from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS, MAX_DEGREE
 from jaxarm.io.files import write_or_return
 from jaxarm.model.problem import Problem
 from jaxarm.optim import evosax_adapter, pso
@@ -35,12 +35,23 @@ def coefficient_label(degree: int) -> str:
     return "a6" if degree == 6 else f"a6..a{degree}"
 
 
-def _nothing_escaped(result: Result) -> str:
-    """The summary's line when no restart found a collision-free path: what ran, what to try."""
+def _nothing_escaped(result: Result, flags: bool) -> str:
+    """The summary's line when no restart found a collision-free path: what ran, and what to
+    try, in the words of the interface in use (``flags``: the command line's; else Python's
+    keywords). A higher degree is suggested only where the package allows one."""
+    restarts = "--restarts N" if flags else "n_restarts=N"
+    tries = [f"more restarts ({restarts})"]
+    if result.constraint != "feasibility":
+        tries.append("feasibility rules (--constraint feasibility)" if flags
+                     else 'feasibility rules (constraint="feasibility")')
+    higher = min(result.degree + 2, MAX_DEGREE)
+    if higher > result.degree:
+        tries.append(f"a higher degree (--degree {higher})" if flags
+                     else f"a higher degree (problem.replace(degree={higher}))")
     return (f"HINT     none of {result.n_restarts} restart(s) of {result.method} under "
             f"{result.constraint} rules (degree {result.degree}) found a collision-free path: "
-            "try more restarts (n_restarts), feasibility rules if they were not used, or a "
-            "higher degree (problem.replace(degree=8)); the best path found collides by "
+            f"try {', '.join(tries[:-1]) + ' or ' + tries[-1] if len(tries) > 1 else tries[0]}; "
+            f"the best path found collides by "
             f"{float(result.restarts.best_violation[result.best_restart]):.3g} cm")
 
 
@@ -93,8 +104,9 @@ class Result(NamedTuple):
     def n_restarts(self) -> int:
         return int(self.restarts.best_fitness.shape[0])
 
-    def summary(self) -> str:
-        """A few human-readable lines."""
+    def summary(self, flags: bool = False) -> str:
+        """A few human-readable lines; ``flags``: a hint names the command line's flags
+        (``jaxarm solve``) instead of Python's keywords."""
         escaped = int(np.sum(self.restarts.escape_iter >= 0))
         return "\n".join([
             f"method {self.method} ({self.config.velocity_rule}), constraint {self.constraint}, "
@@ -108,7 +120,7 @@ class Result(NamedTuple):
               if self.feasible and not self.certified else []),
             f"escape   iteration {self.escape_iter} (best restart); "
             f"{escaped}/{self.n_restarts} restarts escaped",
-            *([_nothing_escaped(self)] if not self.feasible else []),
+            *([_nothing_escaped(self, flags)] if not self.feasible else []),
             f"time     {self.seconds:.2f} s",
         ])
 

@@ -252,3 +252,31 @@ def test_the_summary_labels_the_coefficients_as_the_paper_does(case2):
     result = jaxarm.solve(case2, "A", n_restarts=1, **SMALL)
     assert "\nbest a6  [" in result.summary()  # the paper's a6: one per joint
     assert [search.coefficient_label(d) for d in (6, 8)] == ["a6", "a6..a8"]
+
+
+def _failed(degree: int, constraint: str) -> jaxarm.Result:
+    """A result whose one restart found nothing free (made up: no search runs)."""
+    from jaxarm.optim.restarts import RestartOutcome
+
+    n_free = 3 * (degree - 5)
+    outcome = RestartOutcome(np.zeros((1, n_free), np.float32), np.zeros(1, np.float32),
+                             np.full(1, 2.5, np.float32), np.full(1, -1, np.int32),
+                             np.full((1, n_free), np.nan, np.float32), np.zeros((1, 3)))
+    return jaxarm.Result(outcome, 0, False, 0.0, "A", jaxarm.PRESETS["A"], constraint,
+                         "certified", degree, 0, 1.0)
+
+
+def test_a_hint_suggests_a_higher_degree_in_the_words_of_the_interface():
+    from jaxarm.choices import MAX_DEGREE
+
+    python, command_line = _failed(10, "death").summary(), _failed(10, "death").summary(True)
+    assert "problem.replace(degree=12)" in python and "n_restarts=N" in python
+    assert 'constraint="feasibility"' in python and "--" not in python
+    assert "--degree 12" in command_line and "--restarts N" in command_line
+    assert "--constraint feasibility" in command_line
+    assert "problem.replace" not in command_line and "n_restarts" not in command_line
+    assert "collides by 2.5 cm" in python
+    # feasibility rules already used: not suggested; at the highest degree: no degree
+    at_most = _failed(MAX_DEGREE, "feasibility").summary(True)
+    assert "--degree" not in at_most and "--constraint" not in at_most
+    assert "--restarts N" in at_most
