@@ -376,3 +376,15 @@ def test_cli_refuses_a_read_only_output_folder_before_any_work(capsys, tmp_path)
         assert code == 2 and "--out" in err and "is not writable" in err
     finally:
         folder.chmod(0o700)
+
+
+def test_cli_says_on_stderr_when_it_compiles_unless_quiet(capsys):
+    """A first call that compiles is not silent (shapes no other test uses, so that this
+    process compiles them); ``--quiet`` silences the notices, not the results."""
+    small = ["--method", "A", "--restarts", "1", "--iters", "2", "--particles", "4",
+             "--collision", "sampled"]
+    code, out, err = run_cli(capsys, "solve", "paper-case-2", *small, "--samples", "41")
+    assert code == 0 and "fitness" in out
+    assert "jaxarm: compiling the search" in err and "jaxarm: compiled the search in" in err
+    code, out, err = run_cli(capsys, "--quiet", "solve", "paper-case-2", *small, "--samples", "43")
+    assert code == 0 and "fitness" in out and "compil" not in err

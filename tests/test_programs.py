@@ -1,5 +1,7 @@
 """``jaxarm._compile.jit.jit``: CPU compiler options at the top level, a plain jit inside a trace."""
 
+import logging
+
 import jax
 import numpy as np
 
@@ -84,3 +86,27 @@ def test_the_certified_search_compiles_at_xla_default_level_where_it_screens_win
     assert not compiles_best_at_default_level(
         jaxarm.load_scenario("polygon-field", collision="sampled").spec)
     assert not compiles_best_at_default_level(jaxarm.load_scenario("paper-case-1").spec)
+
+
+def test_a_first_certify_says_that_it_compiles(caplog, case2):
+    """``jaxarm.compile`` logs when the collision check starts and ends compiling (a problem
+    shape no other test uses, so this process has not made its program yet)."""
+    problem = case2.replace(collision="certified", n_samples=37)
+    x = [66.7388, -28.1028, -9.8855]
+    with caplog.at_level(logging.INFO, logger="jaxarm.compile"):
+        jaxarm.certify(problem, x)
+    said = [record.getMessage() for record in caplog.records]
+    assert any(m.startswith("compiling the collision check") for m in said), said
+    assert any(m.startswith("compiled the collision check in ") for m in said), said
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="jaxarm.compile"):
+        jaxarm.certify(problem, x)  # made already: nothing to say
+    assert not caplog.records
+
+
+def test_the_compile_timer_counts_nested_spans_once():
+    from jaxarm._compile.timing import CompileTimer
+
+    timer = CompileTimer()
+    timer._spans += [(2.0, 3.0), (1.0, 4.0), (6.0, 7.5)]  # an inner trace ends first
+    assert timer.seconds == 4.5
