@@ -59,10 +59,10 @@ def joint_path(problem: Problem, x, r, order: int = 0) -> jax.Array:
     if isinstance(r, jax.Array):
         r = jnp.atleast_1d(r)
     else:
-        r = np.atleast_1d(np.asarray(r, dtype=np.float64))
+        given, r = r, np.atleast_1d(np.asarray(r, dtype=np.float64))
         if r.ndim != 1 or not np.all((r >= 0.0) & (r <= 1.0)):
             raise ValueError(f"r must be normalised times in [0, 1], one or a 1-D array, "
-                             f"got {r!r}")
+                             f"got {given!r}")
     basis = path.basis_values(problem.degree, r, order)
     angles = _joint_angles(problem.arrays.start, problem.arrays.goal, x, basis, order=order)
     return angles[..., 0, :] if one_time else angles
