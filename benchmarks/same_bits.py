@@ -41,10 +41,6 @@ def fingerprints(scenes=SCENES) -> dict[str, np.ndarray]:
             out[f"{key}/fitness"] = np.asarray(jaxarm.fitness(problem, x))
             out[f"{key}/violation"] = np.asarray(jaxarm.violation(problem, x))
             out[f"{key}/distance"] = np.asarray(jaxarm.travelling_distance(problem, x))
-            evaluation = jaxarm.evaluate(problem, x) if hasattr(jaxarm, "evaluate") else None
-            if evaluation is not None:
-                for field, value in evaluation._asdict().items():
-                    out[f"{key}/evaluate/{field}"] = np.asarray(value)
             if collision == "certified":
                 certificate = jaxarm.certify(problem, x)
                 for field, value in certificate._asdict().items():

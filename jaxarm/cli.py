@@ -546,13 +546,20 @@ def _join_processes(args) -> bool:
     return jax.process_index() == 0
 
 
-def _compile_notices(quiet: bool) -> None:
+@contextlib.contextmanager
+def _compile_notices(quiet: bool):
     """Say on stderr when one of jaxarm's programs compiles (``jaxarm._compile.timing``): a
-    first call can take minutes, and should not be a silent one."""
+    first call can take minutes, and should not be a silent one. The logger is as it was
+    after the command (``main`` may be called in a notebook's or a test's process)."""
     logger = logging.getLogger("jaxarm.compile")
+    level, handler = logger.level, _Stderr()
     logger.setLevel(logging.WARNING if quiet else logging.INFO)
-    if not any(isinstance(handler, _Stderr) for handler in logger.handlers):
-        logger.addHandler(_Stderr())
+    logger.addHandler(handler)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
 
 
 class _Stderr(logging.Handler):
@@ -563,7 +570,11 @@ class _Stderr(logging.Handler):
 
 
 def _run(args) -> None:
-    _compile_notices(args.quiet)
+    with _compile_notices(args.quiet):
+        _run_command(args)
+
+
+def _run_command(args) -> None:
     if not args.no_cache:
         from jaxarm._compile.cache import enable_compilation_cache
 

@@ -45,11 +45,11 @@ def _fit_title(ax, text: str) -> None:
     figure is laid out (no pixels drawn) and the title wrapped shorter until all of it lies
     inside the figure, at most four times."""
     ax.set_title(text)
-    figure = ax.figure
-    inside = figure.bbox.padded(-2.0)
+    root = ax.figure.figure  # the whole figure, also for an axes in a subfigure
+    inside = ax.figure.bbox.padded(-2.0)
     width = len(text)
     for _ in range(4):
-        figure.draw_without_rendering()
+        root.draw_without_rendering()
         extent = ax.title.get_window_extent()
         if extent.x0 >= inside.x0 and extent.x1 <= inside.x1:
             return

@@ -13,7 +13,7 @@ import numpy as np
 from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import certify
 from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS, MAX_DEGREE
-from jaxarm.io.files import write_or_return
+from jaxarm.io.files import text_writer, write_or_return
 from jaxarm.model.problem import Problem
 from jaxarm.optim import evosax_adapter, pso
 from jaxarm.optim.methods import parse_method
@@ -41,9 +41,14 @@ def _nothing_escaped(result: Result, flags: bool) -> str:
     keywords). A higher degree is suggested only where the package allows one."""
     restarts = "--restarts N" if flags else "n_restarts=N"
     tries = [f"more restarts ({restarts})"]
-    if result.constraint != "feasibility":
-        tries.append("feasibility rules (--constraint feasibility)" if flags
-                     else 'feasibility rules (constraint="feasibility")')
+    if result.constraint != "feasibility":  # named with the method, which takes any rule
+        named = result.method != "custom"
+        if flags:
+            tries.append(f"feasibility rules (--method {result.method}:feasibility)" if named
+                         else "feasibility rules (--constraint feasibility)")
+        else:
+            tries.append(f'feasibility rules (method "{result.method}:feasibility")' if named
+                         else 'feasibility rules (constraint="feasibility")')
     higher = min(result.degree + 2, MAX_DEGREE)
     if higher > result.degree:
         tries.append(f"a higher degree (--degree {higher})" if flags
@@ -164,10 +169,11 @@ class Result(NamedTuple):
                             else pso.PSOConfig(**config))
         return cls(restarts=restarts, **fields)
 
-    def to_json(self, path=None) -> str | pathlib.Path:
-        """``to_dict()`` as strict JSON: the text, or written to ``path`` (a path or an open
-        text file; then that is returned)."""
-        return write_or_return(path, json.dumps(self.to_dict(), allow_nan=False))
+    def to_json(self, path_or_file=None) -> str | pathlib.Path:
+        """``to_dict()`` as strict JSON: the text, or written to ``path_or_file`` (a path,
+        written whole, or an open text file; then that is returned)."""
+        return write_or_return(path_or_file,
+                               text_writer(json.dumps(self.to_dict(), allow_nan=False)))
 
     @classmethod
     def from_json(cls, text: str) -> Result:

@@ -21,7 +21,7 @@ from jaxarm._compile.padding import equal_chunk_length
 from jaxarm._compile.timing import compile_time
 from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import fitness
-from jaxarm.io.files import write_or_return
+from jaxarm.io.files import text_writer, write_or_return
 from jaxarm.model.problem import Problem
 from jaxarm.optim.methods import Variant, parse_methods
 from jaxarm.optim.restarts import (
@@ -189,11 +189,11 @@ class Study(NamedTuple):
                       for c in self.comparisons()]
         return "\n".join(lines)
 
-    def to_json(self, path=None) -> str | pathlib.Path:
-        """Summaries, settings and escape curves as JSON: the text, or written to ``path`` (a
-        path or an open text file; then that path is returned), as ``to_csv`` and
-        ``Trajectory.to_csv`` do."""
-        return write_or_return(path, json.dumps({
+    def to_json(self, path_or_file=None) -> str | pathlib.Path:
+        """Summaries, settings and escape curves as JSON: the text, or written to
+        ``path_or_file`` (a path, written whole, or an open text file; then that is returned),
+        as every ``to_csv`` and ``to_json`` of jaxarm does."""
+        return write_or_return(path_or_file, text_writer(json.dumps({
             "problem": self.problem_name,
             "collision": self.collision,
             "n_particles": self.n_particles,
@@ -204,7 +204,7 @@ class Study(NamedTuple):
                 for m in self.methods
             ],
             "comparisons": [c._asdict() for c in self.comparisons()],
-        }, indent=2))
+        }, indent=2)))
 
     def records(self) -> list[dict]:
         """Tidy per-seed rows: one per (method, restart). Restart ``restart`` is seeded by
@@ -228,15 +228,15 @@ class Study(NamedTuple):
                 })
         return rows
 
-    def to_csv(self, path=None) -> str | pathlib.Path:
-        """``records()`` as CSV: the text, or written to ``path`` (a path or an open text file;
-        then that path is returned)."""
+    def to_csv(self, path_or_file=None) -> str | pathlib.Path:
+        """``records()`` as CSV: the text, or written to ``path_or_file`` (a path, written
+        whole, or an open text file; then that is returned)."""
         rows = self.records()
         out = io.StringIO()
         writer = csv.DictWriter(out, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-        return write_or_return(path, out.getvalue())
+        return write_or_return(path_or_file, text_writer(out.getvalue()))
 
 
 CHUNK_SIZE = 500  # seeds per compiled call of ``escape_study`` unless told

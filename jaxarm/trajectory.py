@@ -22,7 +22,6 @@ NumPy, the torques with ``jaxarm.model.dynamics`` (jit-compiled, under ``jax.ena
 
 from __future__ import annotations
 
-import io
 import json
 import math
 import pathlib
@@ -33,7 +32,7 @@ import numpy as np
 from numpy.polynomial import polynomial as poly
 
 from jaxarm._validate import finite_scalar, finite_vector, positive_scalar, representable
-from jaxarm.io.files import write_or_return
+from jaxarm.io.files import text_writer, write_or_return
 from jaxarm.model import dynamics, path
 from jaxarm.model.problem import Problem
 
@@ -149,13 +148,12 @@ class Trajectory:
 
     def to_csv(self, path_or_file=None, rate: float = 100.0) -> str | pathlib.Path:
         """``table(rate)`` as CSV (a header line, then one row per time): the text, or written
-        to ``path_or_file`` (a path or an open text file; then that is returned). Units: s,
-        rad, rad/s, rad/s^2, N m."""
+        to ``path_or_file`` (a path, whose suffix ``.gz`` compresses it, or an open text file;
+        then that is returned). Units: s, rad, rad/s, rad/s^2, N m."""
         columns = self.table(rate)
-        out = io.StringIO()
-        np.savetxt(out, np.column_stack(list(columns.values())), delimiter=",",
-                   header=",".join(columns), comments="", fmt="%.10g")
-        return write_or_return(path_or_file, out.getvalue())
+        return write_or_return(path_or_file, lambda target: np.savetxt(  # streamed, not a text
+            target, np.column_stack(list(columns.values())), delimiter=",",
+            header=",".join(columns), comments="", fmt="%.10g"))
 
     def to_json(self, path_or_file=None, rate: float = 100.0) -> str | pathlib.Path:
         """The trajectory as JSON: problem name, x, duration, rate, units and ``table(rate)``'s
@@ -164,7 +162,8 @@ class Trajectory:
                   "duration": self.duration, "rate": float(rate),
                   "units": {"t": "s", "q": "rad", "dq": "rad/s", "ddq": "rad/s^2", "tau": "N m"},
                   "columns": {name: values.tolist() for name, values in self.table(rate).items()}}
-        return write_or_return(path_or_file, json.dumps(record, indent=1, allow_nan=False))
+        return write_or_return(path_or_file,
+                               text_writer(json.dumps(record, indent=1, allow_nan=False)))
 
     def peaks(self) -> dict[str, np.ndarray]:
         """Peak ``|velocity|``, ``|acceleration|``, ``|jerk|`` over the motion, each shape

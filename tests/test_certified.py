@@ -219,7 +219,7 @@ def test_screened_windows_fail_where_every_window_tested_fails(rng, scene):
 def test_paths_not_to_prove_stop_at_the_samples(rng):
     """``check(..., prove)``: the paths to prove get the verdict they get without the mask;
     the others only stage 0's: colliding where a sample is, else neither free nor colliding,
-    with violation inf (a search never keeps them: ``pso.Swarm.bar``)."""
+    with violation inf (a search never keeps them: ``evaluate.ProofRequest``)."""
     problem = thin_wall_problem(rng)
     x = rng.uniform(-10, 10, (200, problem.n_free)).astype(np.float32)
     prove = rng.uniform(size=200) < 0.5

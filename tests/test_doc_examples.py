@@ -1,7 +1,7 @@
 """The ``>>>`` examples of the README and the user guide print what the pages say they print.
 
 Sample output in the docs comes from running it: each page's ```pycon blocks run as one
-doctest (``...`` stands for digits that may differ in the last places between machines).
+doctest (``...`` stands for what may differ between machines).
 """
 
 import doctest

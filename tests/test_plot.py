@@ -148,3 +148,15 @@ def test_every_text_of_a_study_figure_lies_inside_it(n_methods):
             assert (drawn.x0 >= box.x0 - 0.5 and drawn.x1 <= box.x1 + 0.5
                     and drawn.y0 >= box.y0 - 0.5 and drawn.y1 <= box.y1 + 0.5), (
                 f"{titles}: drawn over {drawn}, the figure is {box}")
+
+
+def test_a_study_figure_in_a_subfigure_fits_its_title_there():
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(8, 3), layout="constrained")
+    left, _ = figure.subfigures(1, 2)
+    ax = left.add_subplot()
+    plot.plot_escape_rates(_synthetic_study(SIX_METHODS[:3]), ax=ax)
+    figure.draw_without_rendering()
+    title, box = ax.title.get_window_extent(), left.bbox
+    assert title.x0 >= box.x0 - 0.5 and title.x1 <= box.x1 + 0.5

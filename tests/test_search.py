@@ -271,12 +271,11 @@ def test_a_hint_suggests_a_higher_degree_in_the_words_of_the_interface():
 
     python, command_line = _failed(10, "death").summary(), _failed(10, "death").summary(True)
     assert "problem.replace(degree=12)" in python and "n_restarts=N" in python
-    assert 'constraint="feasibility"' in python and "--" not in python
+    assert 'method "A:feasibility"' in python and "--" not in python
     assert "--degree 12" in command_line and "--restarts N" in command_line
-    assert "--constraint feasibility" in command_line
+    assert "--method A:feasibility" in command_line  # works whichever way the rule was named
     assert "problem.replace" not in command_line and "n_restarts" not in command_line
     assert "collides by 2.5 cm" in python
     # feasibility rules already used: not suggested; at the highest degree: no degree
     at_most = _failed(MAX_DEGREE, "feasibility").summary(True)
-    assert "--degree" not in at_most and "--constraint" not in at_most
-    assert "--restarts N" in at_most
+    assert "try more restarts (--restarts N); the best path" in at_most

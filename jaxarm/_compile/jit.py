@@ -49,6 +49,9 @@ def jit(fun=None, *, storable: bool = False, level_flag: str | None = None,
     if fun is None:
         return functools.partial(jit, storable=storable, level_flag=level_flag, label=label,
                                  **options)
+    if level_flag is not None and level_flag not in options.get("static_argnames", ()):
+        raise ValueError(f"level_flag {level_flag!r} must be one of static_argnames, got "
+                         f"{options.get('static_argnames', ())!r}")
     if label is not None:
         timing.announce(fun.__name__, label)
     return _Program(fun, options, storable, level_flag)

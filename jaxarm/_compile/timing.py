@@ -8,6 +8,9 @@ The same events tell the ``jaxarm.compile`` logger when one of jaxarm's own prog
 and ends compiling (INFO), so that a long first call is not a silent one: the ``jaxarm``
 command shows these on stderr, and a Python user sees them with
 ``logging.getLogger("jaxarm").setLevel("INFO")`` and a handler (``logging.basicConfig()``).
+The notice comes once a program is traced, when its compiling starts. The listener is JAX's
+(``jax.monitoring``): ``jax.monitoring.clear_event_listeners()`` removes it, and this module
+then measures nothing.
 """
 
 from __future__ import annotations
@@ -71,11 +74,10 @@ def announce(function_name: str, label: str) -> None:
 
 def _listen() -> None:
     global _listening
-    with _lock:
-        if _listening:
-            return
-        _listening = True
-    jax.monitoring.register_event_time_span_listener(_on_span)
+    with _lock:  # registered before any thread goes on to compile
+        if not _listening:
+            jax.monitoring.register_event_time_span_listener(_on_span)
+            _listening = True
 
 
 def _on_span(event: str, start: float, end: float, **kwargs) -> None:

@@ -8,6 +8,7 @@ that replaces it once complete, so an error or Ctrl-C while writing leaves no ha
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import pathlib
 import threading
@@ -68,19 +69,33 @@ def written(path) -> Iterator[pathlib.Path]:
         temporary.unlink(missing_ok=True)
 
 
-def write_or_return(path_or_file, text: str):
-    """The one convention of every ``to_csv`` / ``to_json``: without a destination, ``text``;
-    with a path, the file written whole (``written``) and its ``Path`` returned; with an open
-    text file, ``text`` written to it and the file returned."""
+def write_or_return(path_or_file, write):
+    """The one convention of every ``to_csv`` / ``to_json``: ``write(target)`` writes the
+    output to a text file object or to a file name (NumPy's writers take either, and pick
+    compression by the name's suffix). Without a destination, the text is returned; given a
+    path, the file is written whole (``written``) and its ``Path`` returned; given an open
+    text file, the output is written to it and the file returned."""
     if path_or_file is None:
-        return text
+        out = io.StringIO()
+        write(out)
+        return out.getvalue()
     if hasattr(path_or_file, "write"):
-        path_or_file.write(text)
+        write(path_or_file)
         return path_or_file
-    path = output_file("path", path_or_file)
+    path = output_file("path_or_file", path_or_file)
     with written(path) as temporary:
-        temporary.write_text(text, encoding="utf-8", newline="")  # exactly these bytes
+        write(temporary)
     return path
+
+
+def text_writer(text: str):
+    """``write_or_return``'s writer of a finished text: exactly these characters."""
+    def write(target):
+        if hasattr(target, "write"):
+            target.write(text)
+        else:
+            pathlib.Path(target).write_text(text, encoding="utf-8", newline="")
+    return write
 
 
 def _special(path: pathlib.Path) -> bool:
