@@ -49,9 +49,6 @@ def jit(fun=None, *, storable: bool = False, level_flag: str | None = None,
     if fun is None:
         return functools.partial(jit, storable=storable, level_flag=level_flag, label=label,
                                  **options)
-    if level_flag is not None and level_flag not in options.get("static_argnames", ()):
-        raise ValueError(f"level_flag {level_flag!r} must be one of static_argnames, got "
-                         f"{options.get('static_argnames', ())!r}")
     if label is not None:
         timing.announce(fun.__name__, label)
     return _Program(fun, options, storable, level_flag)
@@ -109,6 +106,9 @@ class _Program:
                  level_flag: str | None = None):
         self._fun, self._options, self._storable = fun, options, storable
         self._level_flag = level_flag
+        if level_flag is not None and level_flag not in self._static_names:
+            raise ValueError(f"level_flag {level_flag!r} must name a static argument of "
+                             f"{fun.__name__}, one of {sorted(self._static_names)}")
         self._jitted = {}  # at the default level (bool) -> jax.jit
         self._nested = jax.jit(fun, **options)
         self._stored = {}  # Call.memo_key() -> stored_programs.Stored, or None where export refused it

@@ -67,17 +67,18 @@ def parse_method(method, constraint: str | None = None, *, default_constraint: s
     if isinstance(method, Variant):
         rule = one_of("constraint", method.constraint, CONSTRAINTS)
         variant = method._replace(config=_config(method.config, method.config))
-    elif isinstance(method, str):  # "A:feasibility", "evosax:CMA_ES:feasibility"
-        prefix = PREFIX if _names_evosax(method) else ""
-        name, colon, named = method[len(prefix):].partition(":")
-        rule = one_of("constraint", named if colon else fallback, CONSTRAINTS)
-        name = prefix + name
-        variant = Variant(name if rule == "death" else f"{name}:{rule}", _config(name, name),
-                          rule)
     else:
-        rule = one_of("constraint", fallback, CONSTRAINTS)
-        config = _config(method, method)
-        name = PREFIX + config.strategy if isinstance(config, StrategyConfig) else custom_label
+        if isinstance(method, str):  # "A:feasibility", "evosax:CMA_ES:feasibility"
+            prefix = PREFIX if _names_evosax(method) else ""
+            name, colon, named = method[len(prefix):].partition(":")
+            rule = one_of("constraint", named if colon else fallback, CONSTRAINTS)
+            name = prefix + name
+            config = _config(name, name)
+        else:  # a config
+            rule = one_of("constraint", fallback, CONSTRAINTS)
+            config = _config(method, method)
+            name = (PREFIX + config.strategy if isinstance(config, StrategyConfig)
+                    else custom_label)
         variant = Variant(name if rule == "death" else f"{name}:{rule}", config, rule)
     if (isinstance(variant.config, StrategyConfig)
             and rule not in evosax_adapter.STRATEGY_CONSTRAINTS):
