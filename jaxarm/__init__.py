@@ -72,6 +72,7 @@ _EXPORTS = {
     "Variant": "jaxarm.optim.methods",
     "escape_study": "jaxarm.study",
     "World": "jaxarm.model.world",
+    "clutter": "jaxarm.model.clutter",
     "Trajectory": "jaxarm.trajectory",
     "TrajectoryPoint": "jaxarm.trajectory",
     "min_duration": "jaxarm.trajectory",

@@ -149,6 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="List the shipped scenarios with one-line descriptions."))
     _add_solve_command(commands)
     _add_study_command(commands)
+    _add_clutter_command(commands)
     _add_reproduce_command(commands)
     return parser
 
@@ -215,6 +216,46 @@ def _add_timing_options(solve: argparse.ArgumentParser) -> None:
                              "columns when the arm's masses are known; .json)")
     timing.add_argument("--rate", type=float,
                         help=f"samples per second of --export ({EXPORT_RATE:g})")
+
+
+def _add_clutter_command(commands) -> None:
+    """``jaxarm clutter``: a scenario with random obstacles added, written as a file."""
+    from jaxarm.model.clutter import KINDS
+
+    clutter = commands.add_parser(
+        "clutter", help="add random obstacles to a scenario and write it as a new file",
+        description="Add COUNT random obstacles within the arm's reach, the start and goal "
+                    "kept clear, and write the scenario to --output.")
+    _add_common_options(clutter)
+    clutter.add_argument("scenario", help="a shipped scenario name or a path to a .toml file")
+    clutter.add_argument("--count", type=_positive, required=True, help="obstacles to add")
+    clutter.add_argument("--kind", choices=KINDS, default="circles",
+                         help="their shape (circles)")
+    clutter.add_argument("--size", type=float, nargs=2, default=(1.0, 3.0),
+                         metavar=("MIN", "MAX"), help="circumradius range in cm (1 3)")
+    clutter.add_argument("--seed", type=int, default=0, help="the random stream (0)")
+    clutter.add_argument("--output", "-o", type=pathlib.Path, required=True,
+                         help="the scenario file to write (.toml)")
+
+
+def _clutter(args) -> None:
+    from jaxarm.io.scenario_files import load_scenario, save_scenario
+    from jaxarm.model.clutter import clutter
+
+    if args.output.suffix != ".toml":
+        raise ValueError(f"--output must end in .toml, got {str(args.output)!r}")
+    try:
+        problem = clutter(load_scenario(args.scenario), args.count, args.kind, args.size,
+                          args.seed)
+    except ValueError as error:
+        raise ValueError(_flag_names(str(error))) from None
+    _write(args.output, lambda path: save_scenario(problem, path))
+    print(problem.summary())
+
+
+def _flag_names(message: str) -> str:
+    """An error of ``jaxarm.clutter`` with its arguments named as the flags."""
+    return re.sub(r"^(count|size|seed)\b", lambda m: f"--{m.group()}", message)
 
 
 def _add_study_command(commands) -> None:
@@ -520,7 +561,7 @@ def _reproduce(args) -> None:
 
 
 COMMANDS = {"scenarios": _scenarios, "solve": _solve, "study": _study,
-            "reproduce-paper": _reproduce}
+            "clutter": _clutter, "reproduce-paper": _reproduce}
 
 
 def _join_processes(args) -> bool:

@@ -25,7 +25,7 @@ import functools
 import jax
 import jax.numpy as jnp
 
-from jaxarm.model import path
+from jaxarm.model import nearby, path
 from jaxarm.model import world as world_lib
 from jaxarm.model.arm import link_endpoints
 
@@ -55,10 +55,19 @@ def posture_margin_depth(lengths, world, theta: list, margin=0.0, *, exact: bool
       Array of shape (...,), >= 0, zero iff every link keeps the margin from every obstacle.
 
     With exact distances and more than ``UNROLLED_LINK_EDGES`` link-edge pairs
-    (``link_edge_pairs``), the links are taken one at a time, in a ``lax.scan``.
+    (``link_edge_pairs``), the links are taken one at a time, in a ``lax.scan``. A world
+    with near tables (``jaxarm.model.nearby``) tests each link against its listed slots
+    alone: the others are farther than the tables' reach, which is at least the margin.
     """
     links = link_endpoints(lengths, theta)
     total = jnp.zeros_like(theta[0])
+    if world.near is not None:
+        for index, link in enumerate(links):
+            total = total + nearby.over_blocks(
+                world, nearby.local_slots(world.near, index, *link),
+                lambda block, link=link: _add_link_margin_depth(
+                    jnp.zeros_like(total), link, block, margin, exact=exact), jnp.add)
+        return total
     if exact and link_edge_pairs(len(links), world) > UNROLLED_LINK_EDGES:
         stacked = tuple(jnp.stack(coordinate) for coordinate in zip(*links))
         total, _ = jax.lax.scan(
@@ -101,13 +110,32 @@ def posture_clearance_bound(lengths, world, theta: list, *, exact: bool) -> list
 
 def link_clearance_bounds(world, links: list, *, exact: bool) -> list:
     """``posture_clearance_bound`` of links given by their end points (``link_endpoints``'s
-    tuples, each coordinate of shape (...,)); ``exact`` as there."""
-    if exact:
-        return [smallest_separation(world_lib.separation_parts(*link, world), link[0])
-                for link in links]
-    return [_smallest(world_lib.circle_slots(*link, world)
-                      + world_lib.polygon_slots(*link, world, exact=False),
-                      jnp.full_like(link[0], jnp.inf)) for link in links]
+    tuples, each coordinate of shape (...,)); ``exact`` as there.
+
+    In a world with near tables, each link's listed slots, and the tables' reach for every
+    other (``jaxarm.model.nearby``): the bound is then exact up to the reach and the reach
+    beyond it."""
+    def clearance(link, world):
+        if exact:
+            return smallest_separation(world_lib.separation_parts(*link, world), link[0])
+        return _smallest(world_lib.circle_slots(*link, world)
+                         + world_lib.polygon_slots(*link, world, exact=False),
+                         jnp.full_like(link[0], jnp.inf))
+    if world.near is None:
+        return [clearance(link, world) for link in links]
+    return [near_minimum(world, index, link, functools.partial(clearance, link))
+            for index, link in enumerate(links)]
+
+
+def near_minimum(world, index, link, value):
+    """The smallest ``value(block)`` (a pytree of arrays of the link's shape) over blocks of the
+    slots listed near link ``index`` (an int, or ints broadcasting with the link's
+    coordinates) at end points ``link``, each array at most the tables' reach: a lower
+    bound on that value over every obstacle when it is a lower bound on a distance."""
+    found = nearby.over_blocks(world, nearby.local_slots(world.near, index, *link), value,
+                               functools.partial(jax.tree.map, jnp.minimum))
+    reach = jnp.asarray(world.near.reach, link[0].dtype)
+    return jax.tree.map(lambda a: jnp.minimum(a, reach), found)
 
 
 def smallest_separation(parts: world_lib.SeparationParts, like):

@@ -30,6 +30,9 @@ Schema (units: cm and rad)::
     type = "circle"                    # center = [x, y], radius = r
     type = "box"                       # min = [xmin, ymin], max = [xmax, ymax]
     type = "polygon"                   # vertices = [[x, y], ...], convex, either order
+    type = "map"                       # file = "room.yaml": a ROS map_server occupancy map,
+                                       #   relative to the scenario file; unknown = "occupied"
+                                       #   (default) or "free" (``jaxarm.io.occupancy_maps``)
 
 Numbers must be ones float32, which the search computes in, holds: lengths, coordinates,
 radii, ``margin`` and ``certify_tol`` within +-1e5 cm (``_validate.MAX_CM``), ``init_low`` and
@@ -52,6 +55,7 @@ import numpy as np
 import tomli_w
 
 from jaxarm._validate import finite_scalar, finite_vector, renamed
+from jaxarm.io import occupancy_maps
 from jaxarm.model import world as world_lib
 from jaxarm.model.arm import Arm, inverse_kinematics
 from jaxarm.model.problem import Problem
@@ -78,7 +82,9 @@ _OBSTACLE_KEYS = {
     "circle": {"type", "center", "radius"},
     "box": {"type", "min", "max"},
     "polygon": {"type", "vertices"},
+    "map": {"type", "file", "unknown"},
 }
+_REQUIRED_KEYS = {"map": {"type", "file"}}
 
 
 def available() -> dict[str, str]:
@@ -110,26 +116,27 @@ def load_scenario(name_or_path: str | pathlib.Path, **overrides) -> Problem:
       >>> problem.name, problem.n_free, problem.collision
       ('paper-case-2', 3, 'sampled')
     """
-    text, source = _read(name_or_path)
+    text, source, folder = _read(name_or_path)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise ScenarioError(f"{source}: malformed TOML: {error}") from None
     try:
-        problem = _problem(data, default_name=pathlib.Path(source).stem)
+        problem = _problem(data, default_name=pathlib.Path(source).stem, folder=folder)
         return problem.replace(**overrides) if overrides else problem
     except (ValueError, TypeError) as error:  # ScenarioError is a ValueError
         raise ScenarioError(f"{source}: {error}") from None
 
 
-def _read(name_or_path) -> tuple[str, str]:
+def _read(name_or_path) -> tuple[str, str, pathlib.Path]:
+    """The scenario's text, its name in messages, and the folder its maps are relative to."""
     if not str(name_or_path).strip():
         raise ScenarioError(f"scenario must be a shipped name or a path to a .toml file, got "
                             f"{str(name_or_path)!r}; shipped scenarios: {', '.join(available())}")
     candidate = pathlib.Path(name_or_path)
     if candidate.suffix == ".toml" or candidate.exists():
         try:
-            return candidate.read_text(encoding="utf-8"), str(candidate)
+            return candidate.read_text(encoding="utf-8"), str(candidate), candidate.parent
         except OSError as error:
             raise ScenarioError(f"cannot read scenario file {str(candidate)!r}: {error.strerror}")
         except UnicodeDecodeError as error:
@@ -139,7 +146,8 @@ def _read(name_or_path) -> tuple[str, str]:
     if not resource.is_file():
         names = ", ".join(available())
         raise ScenarioError(f"unknown scenario {str(name_or_path)!r}; shipped scenarios: {names}")
-    return resource.read_text(encoding="utf-8"), f"{name_or_path}.toml"
+    return (resource.read_text(encoding="utf-8"), f"{name_or_path}.toml",
+            pathlib.Path(str(SHIPPED)))
 
 
 def _table(data: dict, key: str, required: bool = True) -> dict:
@@ -197,9 +205,10 @@ def _check_agreement(which: str, arm: Arm, joints, pose: dict) -> None:
             "give one of them")
 
 
-def _obstacles(entries) -> tuple[World, dict[str, str]]:
+def _obstacles(entries, folder: pathlib.Path) -> tuple[World, dict[str, str]]:
     """The world, and each obstacle's ``World`` name (``"boxes[0]"``) -> its name in the file
-    (``"obstacles[3]"``)."""
+    (``"obstacles[3]"``; a map's boxes: ``"obstacles[3] (box 12 of room.yaml)"``). Maps are
+    read relative to ``folder``."""
     if not isinstance(entries, list):
         raise ScenarioError(f"obstacles must be an array of tables, got {entries!r}")
     circles, boxes, polygons = [], [], []
@@ -210,9 +219,9 @@ def _obstacles(entries) -> tuple[World, dict[str, str]]:
         where = f"obstacles[{index}]"
         kind = entry.get("type") if isinstance(entry, dict) else None
         if kind not in _OBSTACLE_KEYS:
-            raise ScenarioError(f"{where}.type must be circle, box or polygon, got {kind!r}")
+            raise ScenarioError(f"{where}.type must be circle, box, polygon or map, got {kind!r}")
         _unknown(entry, _OBSTACLE_KEYS[kind], f"in {where}: ")
-        missing = sorted(_OBSTACLE_KEYS[kind] - set(entry))
+        missing = sorted(_REQUIRED_KEYS.get(kind, _OBSTACLE_KEYS[kind]) - set(entry))
         if missing:
             raise ScenarioError(f"{where} ({kind}) is missing {missing[0]!r}")
         try:
@@ -222,6 +231,20 @@ def _obstacles(entries) -> tuple[World, dict[str, str]]:
                 circles.append(world_lib.check_circle(where, (*center, radius)))
             elif kind == "box":
                 boxes.append(world_lib.check_box(where, (entry["min"], entry["max"])))
+            elif kind == "map":
+                file = entry["file"]
+                if not isinstance(file, str):
+                    raise ValueError(f"{where}.file must be a path to a map's YAML file, got "
+                                     f"{file!r}")
+                try:
+                    grid = occupancy_maps.load_map(folder / file,
+                                                   entry.get("unknown", "occupied"))
+                except ValueError as error:
+                    raise ValueError(f"{where}: {error}") from None
+                for number, box in enumerate(grid.boxes()):
+                    boxes.append(world_lib.check_box(where, box))
+                    names[f"boxes[{len(boxes) - 1}]"] = f"{where} (box {number} of {file})"
+                continue
             else:
                 polygons.append(world_lib.check_polygon(where, entry["vertices"]))
         except (ValueError, TypeError) as error:
@@ -231,7 +254,7 @@ def _obstacles(entries) -> tuple[World, dict[str, str]]:
     return World(circles=circles, boxes=boxes, polygons=polygons), names
 
 
-def _problem(data: dict, default_name: str) -> Problem:
+def _problem(data: dict, default_name: str, folder: pathlib.Path = pathlib.Path(".")) -> Problem:
     _unknown(data, _TOP_KEYS, "")
     if data.get("units", UNITS) != UNITS:
         raise ScenarioError(f"units must be {UNITS!r} (lengths in cm, angles in rad), "
@@ -246,7 +269,7 @@ def _problem(data: dict, default_name: str) -> Problem:
     _unknown(search, set(_SEARCH_FIELDS), "in [search]: ")
     fields = {field: search[key] for key, field in _SEARCH_FIELDS.items() if key in search}
     start, goal = _posture(data, "start", arm), _posture(data, "goal", arm)
-    world, obstacle_names = _obstacles(data.get("obstacles", []))
+    world, obstacle_names = _obstacles(data.get("obstacles", []), folder)
     try:
         return Problem(arm=arm, start=start, goal=goal, world=world,
                        name=str(data.get("name", default_name)),
@@ -262,8 +285,8 @@ def _problem(data: dict, default_name: str) -> Problem:
 
 def problem_from_table(table: dict) -> Problem:
     """The problem that a scenario table describes (a parsed scenario file, or
-    ``scenario_table``'s output); a missing, unknown or invalid key raises ``ScenarioError``
-    naming it."""
+    ``scenario_table``'s output; a map's file is relative to the working directory); a
+    missing, unknown or invalid key raises ``ScenarioError`` naming it."""
     try:
         return _problem(table, "unnamed")
     except (ValueError, TypeError) as error:

@@ -27,7 +27,7 @@ from jaxarm._validate import (
     representable,
 )
 from jaxarm.choices import COLLISION_MODES, MAX_SAMPLES, one_of
-from jaxarm.model import path, posture
+from jaxarm.model import nearby, path, posture
 from jaxarm.model.arm import Arm
 from jaxarm.model.world import World, WorldArrays
 
@@ -37,7 +37,7 @@ MAX_CERTIFY_BUDGET = 2**27
 # Obstacle slots of each kind (circles, polygons, vertices per polygon): every slot is computed
 # for every link at every sample, so a scene needs far fewer; a bound that stops a typo such as
 # 10**9 before it allocates gigabytes.
-MAX_SLOTS = 2**12
+MAX_SLOTS = 2**16
 
 
 @functools.partial(jit, storable=True)
@@ -56,6 +56,38 @@ def _posture_capacities(capacities: tuple[int, int, int]) -> tuple[int, int, int
     the shipped scenes of one arm share one program (it checks a single posture)."""
     circles, polygons, vertices = capacities
     return max(circles, 4), max(polygons, 4), max(vertices, 8)
+
+
+def _posture_parts(world: World, capacities: tuple[int, int, int]):
+    """The world in parts for the posture checks, each with the capacities to pack it at: a
+    large world (``nearby.uses_broad_phase``) in parts of ``nearby.BLOCK`` obstacles of one
+    kind, which share one program whatever the world's size."""
+    if not nearby.uses_broad_phase(capacities):
+        return [(world, _posture_capacities(capacities))]
+    size, parts = nearby.BLOCK, []
+    parts_capacities = (size, size, max(capacities[2], 8))
+    for kind in ("circles", "boxes", "polygons"):
+        obstacles = getattr(world, kind)
+        for first in range(0, len(obstacles), size):
+            part = World(**{kind: obstacles[first:first + size]})
+            parts.append((_Renamed(part, kind, first), parts_capacities))
+    return parts
+
+
+class _Renamed(NamedTuple):
+    """A part of a world whose slot names are the whole world's (``_posture_parts``)."""
+
+    part: World
+    kind: str
+    first: int
+
+    def pack(self, capacities):
+        return self.part.pack(capacities)
+
+    def slot_names(self, capacities):
+        return [None if name is None else
+                f"{self.kind}[{self.first + int(name.split('[')[1][:-1])}]"
+                for name in self.part.slot_names(capacities)]
 
 
 class ProblemSpec(NamedTuple):
@@ -195,11 +227,11 @@ class Problem:
         """Start, then goal: neither may overlap an obstacle or come closer than the margin."""
         dtype = jnp.result_type(float)
         lengths = np.asarray(self.arm.lengths, dtype=dtype)
-        capacities = _posture_capacities(self.capacities)
-        world, names = self.world.pack(capacities), self.world.slot_names(capacities)
         for which in ("start", "goal"):
-            self._check_posture(which, np.asarray(getattr(self, which), dtype=dtype), lengths,
-                                world, names)
+            theta = np.asarray(getattr(self, which), dtype=dtype)
+            for part, capacities in _posture_parts(self.world, self.capacities):
+                self._check_posture(which, theta, lengths, part.pack(capacities),
+                                    part.slot_names(capacities))
 
     def _check_posture(self, which: str, theta, lengths, world, names) -> None:
         depth = np.asarray(_posture_depth(lengths, world, theta))
@@ -254,12 +286,22 @@ class Problem:
             lengths=np.asarray(self.arm.lengths),
             start=np.asarray(self.start),
             goal=np.asarray(self.goal),
-            world=self.world.pack(self.capacities),
+            world=self._packed_world(),
             margin=np.asarray(self.margin),
             certify_tol=np.asarray(self.certify_tol),
             joint_limits=np.asarray(self.joint_limits if self.joint_limits is not None
                                     else [(-np.inf, np.inf)] * self.n_joints),
         )
+
+    def _packed_world(self) -> WorldArrays:
+        """The world packed at the problem's capacities, with near tables for this arm and
+        margin when it is large (``jaxarm.model.nearby``)."""
+        world = self.world.pack(self.capacities)
+        if not nearby.uses_broad_phase(self.capacities):
+            return world
+        lengths = np.asarray(self.arm.lengths)
+        return world._replace(near=nearby.build(
+            world, lengths, nearby.default_reach(lengths, self.margin, self.collision == "certified")))
 
     def replace(self, **changes) -> "Problem":
         """A copy with some fields changed (and validated again)."""

@@ -39,6 +39,9 @@ class WorldArrays(NamedTuple):
     extent_high: jnp.ndarray  # shape=(n_polygon_slots, n_vertex_slots), max of polygon . normal
     edge_valid: jnp.ndarray  # shape=(n_polygon_slots, n_vertex_slots), bool
     polygon_valid: jnp.ndarray  # shape=(n_polygon_slots,), bool
+    # The broad phase's ``jaxarm.model.nearby.NearTables`` of a large world for its arm (None:
+    # every slot is tested; ``Problem.arrays`` sets it).
+    near: object = None
 
 
 # The WorldArrays fields with one entry per polygon slot.
@@ -225,8 +228,12 @@ def leading_slots(values, ndim: int):
     """Obstacle data of shape (n_slots,) as (n_slots, 1, ..., 1) to broadcast against (...).
 
     Slots lead so that the innermost axis stays the caller's (the samples): elementwise loops
-    then vectorise over it instead of over a handful of obstacle slots.
+    then vectorise over it instead of over a handful of obstacle slots. Data already of shape
+    (n_slots, ...) (a world gathered per link, ``jaxarm.model.nearby.gathered``) is returned
+    as it is.
     """
+    if values.ndim > 1:
+        return values
     return values.reshape(values.shape[:1] + (1,) * ndim)
 
 
@@ -330,7 +337,7 @@ def polygon_overlap_gap_xy(sx, sy, ex, ey, world: WorldArrays):
     high = jnp.asarray(world.extent_high, dtype=dtype)
     gap = jnp.full((normals.shape[0],) + sx.shape, -jnp.inf, dtype)
     along_min = along_max = None
-    for v in range(normals.shape[-2]):
+    for v in range(normals.shape[1]):
         nx, ny = leading_slots(normals[:, v, 0], n), leading_slots(normals[:, v, 1], n)
         a = sx * nx + sy * ny
         b = ex * nx + ey * ny
@@ -380,18 +387,18 @@ def polygon_separation_xy(sx, sy, ex, ey, world: WorldArrays, vertex_axis: bool 
     n = sx.ndim
     gap = polygon_overlap_gap_xy(sx, sy, ex, ey, world)
     vertices = jnp.asarray(world.vertices, dtype=sx.dtype)
-    following = jnp.roll(vertices, -1, axis=-2)
+    following = jnp.roll(vertices, -1, axis=1)
     if vertex_axis:
         def slots_and_vertices(a):  # (n_slots, n_vertices) as (n_slots, n_vertices, 1, ..., 1)
-            return a.reshape(a.shape[:2] + (1,) * n)
+            return a if a.ndim > 2 else a.reshape(a.shape[:2] + (1,) * n)
 
         distance = _edge_distance(
-            sx, sy, ex, ey, *(slots_and_vertices(a[..., i]) for a in (vertices, following)
+            sx, sy, ex, ey, *(slots_and_vertices(a[:, :, i]) for a in (vertices, following)
                               for i in (0, 1)),
             slots_and_vertices(world.edge_valid)).min(axis=1)
     else:
         distance = jnp.full(gap.shape, jnp.inf, gap.dtype)
-        for v in range(vertices.shape[-2]):  # static and small: see polygon_overlap_gap_xy
+        for v in range(vertices.shape[1]):  # static and small: see polygon_overlap_gap_xy
             distance = jnp.minimum(distance, _edge_distance(
                 sx, sy, ex, ey, *(leading_slots(a[:, v, i], n) for a in (vertices, following)
                                   for i in (0, 1)),

@@ -107,12 +107,22 @@ def _test_pieces(motion: Motion, pieces: _Piece, tables, step, margin, busy):
         return jnp.stack(swing), jax.tree.map(lambda *links: jnp.stack(links), *motions)
 
     def tight_bounds(swing, motion):  # every link at once: (n_joints, n) each
-        parts = world_lib.separation_parts(*motion.near, *motion.far, world)
-        clearance = collision_lib.smallest_separation(parts, swing)
+        second = 0.5 * widened_radius[None] * widened_radius[None] * motion.acceleration
+
+        def gaps(world):  # the nearest obstacle at the centre and the hull's gap
+            parts = world_lib.separation_parts(*motion.near, *motion.far, world)
+            return (collision_lib.smallest_separation(parts, swing),
+                    bounds.motion_gap(world, motion, widened_radius[None], second, parts))
+        if world.near is None:
+            clearance, hull = gaps(world)
+        else:  # each link's listed obstacles, the reach for the others
+            links = jnp.arange(n_joints)[:, None]
+            clearance, hull = collision_lib.near_minimum(
+                world, links, (*motion.near, *motion.far), gaps)
+            reach = jnp.asarray(world.near.reach, dtype)
+            hull = jnp.minimum(hull, reach - widened_radius[None] * motion.top_speed)
         first = swing - (clearance - margin)
-        second, = bounds.motion_shortfalls(world, [motion], widened_radius[None], margin,
-                                           [parts])
-        return first, second, clearance
+        return first, second - (hull - margin), clearance
 
     # Three branches, taken unless no piece is to be tested (``busy`` False: zeros): the
     # pieces' geometry link by link, the links stacked on an array axis, and the bounds on

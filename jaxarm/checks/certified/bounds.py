@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm.checks import collision as collision_lib
 from jaxarm.checks.certified.hull import Patch, hull_separation
 from jaxarm.model import world as world_lib
 from jaxarm.model.arm import sincos
@@ -160,13 +161,20 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     for k, motion in enumerate(link_motions(lengths, about_centre, radius)):
         link = (*motion.near, *motion.far)
         sweep = world_lib.Sweep(*(radius * v for v in motion.near_velocity + motion.far_velocity))
-        circles, swept_circles = world_lib.circle_sweep_gaps(*link, sweep, world)
-        polygons = world_lib.polygon_slots(*link, world, exact=False)
-        none = jnp.full_like(link[0], jnp.inf)  # a world without obstacles
-        clearance = functools.reduce(jnp.minimum, circles + polygons, none)
         spread = radius * motion.top_speed
-        swept = functools.reduce(jnp.minimum, swept_circles + [gap - spread for gap in polygons],
-                                 none)
+
+        def gaps(world, link=link, sweep=sweep, spread=spread):
+            circles, swept_circles = world_lib.circle_sweep_gaps(*link, sweep, world)
+            polygons = world_lib.polygon_slots(*link, world, exact=False)
+            none = jnp.full_like(link[0], jnp.inf)  # a world without obstacles
+            return (functools.reduce(jnp.minimum, circles + polygons, none),
+                    functools.reduce(jnp.minimum,
+                                     swept_circles + [gap - spread for gap in polygons], none))
+        if world.near is None:
+            clearance, swept = gaps(world)
+        else:  # the listed obstacles, and the reach for the others (``near_minimum``)
+            clearance, swept = collision_lib.near_minimum(world, k, link, gaps)
+            swept = jnp.minimum(swept, jnp.asarray(world.near.reach, swept.dtype) - spread)
         shortfalls.append(jnp.minimum(
             swings[k] - (clearance - margin),
             0.5 * radius * radius * motion.acceleration - (swept - margin)))
@@ -224,24 +232,31 @@ def motion_shortfalls(world, motions: list, radius, margin=0.0, separations=None
     """
     shortfalls = []
     for index, motion in enumerate(motions):
-        (x, y), (next_x, next_y) = motion.near, motion.far
-        (vx, vy), (next_vx, next_vy) = motion.near_velocity, motion.far_velocity
-        parts = (world_lib.separation_parts(x, y, next_x, next_y, world) if separations is None
-                 else separations[index])
-        # the hull lies within this distance of the link at the centre (``top_speed``)
-        spread = radius * motion.top_speed
-        patch = Patch((x, y), (next_x, next_y), (radius * vx, radius * vy),
-                      (radius * next_vx, radius * next_vy))
         second = 0.5 * radius * radius * motion.acceleration
-        bent = None
-        if not world.vertices.shape[0]:  # circles alone: the third-order bound too
-            bent = (bent_corners(motion, radius), radius ** 3 / 6 * motion.jerk - second)
-        hull = hull_separation(
-            world, patch.corners(), circle_distances=(parts.circles, spread), patch=patch,
-            polygon_distances=None if parts.polygons is None else (parts.polygons, spread),
-            bent=bent)
+        hull = motion_gap(world, motion, radius, second,
+                          None if separations is None else separations[index])
         shortfalls.append(second - (hull - margin))
     return shortfalls
+
+
+def motion_gap(world, motion: LinkMotion, radius, second, parts=None):
+    """A lower bound on the separating-axis gap between the hull of a link's linear part over
+    the piece and every obstacle (``motion_shortfalls``' ``h_k``), from the link's
+    ``world.separation_parts`` at the centre (``parts``; computed here if None)."""
+    (x, y), (next_x, next_y) = motion.near, motion.far
+    (vx, vy), (next_vx, next_vy) = motion.near_velocity, motion.far_velocity
+    parts = world_lib.separation_parts(x, y, next_x, next_y, world) if parts is None else parts
+    # the hull lies within this distance of the link at the centre (``top_speed``)
+    spread = radius * motion.top_speed
+    patch = Patch((x, y), (next_x, next_y), (radius * vx, radius * vy),
+                  (radius * next_vx, radius * next_vy))
+    bent = None
+    if not world.vertices.shape[0]:  # circles alone: the third-order bound too
+        bent = (bent_corners(motion, radius), radius ** 3 / 6 * motion.jerk - second)
+    return hull_separation(
+        world, patch.corners(), circle_distances=(parts.circles, spread), patch=patch,
+        polygon_distances=None if parts.polygons is None else (parts.polygons, spread),
+        bent=bent)
 
 
 def bent_corners(motion: LinkMotion, radius) -> list:

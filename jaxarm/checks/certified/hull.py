@@ -91,8 +91,8 @@ def hull_separation(world, corners: list, circle_distances=None, patch=None,
     n_polygons, n_vertices = world.vertices.shape[:2]
     if n_polygons:
         per_vertex = [jnp.asarray(a, dtype)[:, v] for a in (
-            world.vertices[..., 0], world.vertices[..., 1], world.normals[..., 0],
-            world.normals[..., 1], world.extent_low, world.extent_high)
+            world.vertices[:, :, 0], world.vertices[:, :, 1], world.normals[:, :, 0],
+            world.normals[:, :, 1], world.extent_low, world.extent_high)
             for v in range(n_vertices)] + [world.edge_valid[:, v] for v in range(n_vertices)]
         if polygon_distances is not None and n_polygons > 1:
             distances, spread = polygon_distances

@@ -1,0 +1,119 @@
+"""Cluttered scenes on demand: random obstacles within an arm's reach, its start and goal clear.
+
+``clutter(problem, count, kind, size, seed)`` adds ``count`` obstacles of one kind to a
+problem's world: centres uniform over the disk of the arm's reach (by area), sizes (the
+circumradius, cm) uniform in ``size``, each kept at least the problem's margin from every link
+at the start and the goal (tested on the obstacle's circumscribed circle, so a little
+further). The same seed gives the same world.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jaxarm._validate import check_seed, finite_vector, positive_int
+from jaxarm.choices import one_of
+from jaxarm.model.problem import Problem
+from jaxarm.model.world import World
+
+KINDS = ("circles", "triangles", "boxes")
+# Draws per obstacle before giving up: a scene whose postures leave too little room fails
+# with a message instead of looping.
+_TRIES_PER_OBSTACLE = 1000
+
+
+def clutter(problem: Problem, count: int, kind: str = "circles", size=(1.0, 3.0),
+            seed: int = 0) -> Problem:
+    """The problem with ``count`` random obstacles added to its world.
+
+    Args:
+      problem: the arm, its start and goal, and any obstacles it already has.
+      count: obstacles to add, >= 1.
+      kind: ``"circles"``, ``"triangles"`` (convex, vertices at random angles on the
+        circumcircle) or ``"boxes"`` (axis-aligned squares).
+      size: ``(smallest, largest)`` circumradius, cm, 0 < smallest <= largest.
+      seed: the random stream (an int >= 0).
+
+    Returns:
+      A ``Problem`` named ``"<name>+<count> <kind>"``.
+
+    Raises:
+      ValueError: naming the argument, or saying that the obstacles do not fit beside the
+        start and goal postures.
+
+    Examples:
+      >>> problem = jaxarm.load_scenario("open-space")
+      >>> jaxarm.clutter(problem, 40, "triangles", size=(1.0, 2.0), seed=1).world.n_obstacles
+      40
+    """
+    if not isinstance(problem, Problem):
+        raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
+    count = positive_int("count", count, minimum=1, maximum=100_000)
+    one_of("kind", kind, KINDS)
+    low, high = (float(v) for v in finite_vector("size", size, length=2))
+    if not 0 < low <= high:
+        raise ValueError(f"size must be (smallest, largest) with 0 < smallest <= largest (cm), "
+                         f"got {tuple(size)!r}")
+    rng = np.random.default_rng(check_seed(seed))
+    reach = problem.arm.reach
+    links = np.concatenate([_posture_links(problem.arm.lengths, posture)
+                            for posture in (problem.start, problem.goal)])
+    centres, radii = [], []
+    tries = 0
+    while len(centres) < count:
+        tries += 1
+        if tries > _TRIES_PER_OBSTACLE * count:
+            raise ValueError(
+                f"cannot place {count} {kind} of size {low:g}-{high:g} cm clear of the start "
+                f"and goal of {problem.name!r} (placed {len(centres)}); ask for fewer or smaller")
+        distance = reach * np.sqrt(rng.uniform())
+        angle = rng.uniform(0.0, 2.0 * np.pi)
+        centre = distance * np.array([np.cos(angle), np.sin(angle)])
+        radius = rng.uniform(low, high)
+        if _segment_distances(centre, links).min() > radius + problem.margin:
+            centres.append(centre)
+            radii.append(radius)
+    added = _shapes(kind, np.array(centres), np.array(radii), rng)
+    world = problem.world
+    grown = World(circles=world.circles + added.circles, boxes=world.boxes + added.boxes,
+                  polygons=world.polygons + added.polygons)
+    return problem.replace(world=grown, capacities=None, name=f"{problem.name}+{count} {kind}",
+                           description=f"{problem.name} with {count} random {kind} of size "
+                           f"{low:g}-{high:g} cm (seed {seed})")
+
+
+def _posture_links(lengths, theta) -> np.ndarray:
+    """Every link's end points at one posture, shape (n_links, 4) as (sx, sy, ex, ey)."""
+    absolute = np.cumsum(np.asarray(theta, dtype=np.float64))
+    ends = np.cumsum(np.stack([np.asarray(lengths) * np.cos(absolute),
+                               np.asarray(lengths) * np.sin(absolute)], axis=1), axis=0)
+    starts = np.concatenate([np.zeros((1, 2)), ends[:-1]])
+    return np.concatenate([starts, ends], axis=1)
+
+
+def _segment_distances(point, links) -> np.ndarray:
+    """Distance from a point (2,) to segments (n, 4) as (sx, sy, ex, ey)."""
+    start, end = links[:, :2], links[:, 2:]
+    along = end - start
+    t = np.clip(np.sum((point - start) * along, axis=1)
+                / np.maximum(np.sum(along * along, axis=1), 1e-30), 0.0, 1.0)
+    return np.linalg.norm(point - (start + t[:, None] * along), axis=1)
+
+
+def _shapes(kind: str, centres, radii, rng) -> World:
+    """Obstacles of one kind inscribed in the circles (centres (n, 2), radii (n,))."""
+    if kind == "circles":
+        return World(circles=[(float(x), float(y), float(r))
+                              for (x, y), r in zip(centres, radii)])
+    if kind == "boxes":
+        half = radii / np.sqrt(2.0)
+        return World(boxes=[((float(x - h), float(y - h)), (float(x + h), float(y + h)))
+                            for (x, y), h in zip(centres, half)])
+    # Triangles: three angles at least 0.6 rad apart, so none is a sliver.
+    triangles = []
+    for centre, radius in zip(centres, radii):
+        gaps = 0.6 + rng.dirichlet(np.ones(3)) * (2.0 * np.pi - 1.8)
+        angles = rng.uniform(0.0, 2.0 * np.pi) + np.cumsum(gaps)
+        triangles.append([(float(centre[0] + radius * np.cos(a)),
+                           float(centre[1] + radius * np.sin(a))) for a in angles])
+    return World(polygons=triangles)
