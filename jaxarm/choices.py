@@ -13,6 +13,7 @@ BETA_MODES = ("dimension", "particle")
 TOPOLOGIES = ("global", "ring", "global-ring")  # see jaxarm.optim.pso
 CONSTRAINTS = ("death", "feasibility", "epsilon", "penalty")  # see jaxarm.optim.constraints
 COLLISION_MODES = ("sampled", "certified")
+CLUTTER_KINDS = ("circles", "triangles", "boxes")  # see jaxarm.model.clutter
 MIN_DEGREE = 6  # the paper's: a0..a5 meet the six rest-to-rest end conditions
 # The highest path degree. float32 paths and distances and Simpson's rule at 101 samples stay
 # accurate well past it; the certified check, the default, is what binds: the memory and time

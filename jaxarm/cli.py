@@ -21,6 +21,7 @@ import sys
 import tempfile
 
 from jaxarm.choices import (
+    CLUTTER_KINDS,
     COLLISION_MODES,
     CONSTRAINTS,
     DEFAULT_CONSTRAINT,
@@ -220,8 +221,6 @@ def _add_timing_options(solve: argparse.ArgumentParser) -> None:
 
 def _add_clutter_command(commands) -> None:
     """``jaxarm clutter``: a scenario with random obstacles added, written as a file."""
-    from jaxarm.model.clutter import KINDS
-
     clutter = commands.add_parser(
         "clutter", help="add random obstacles to a scenario and write it as a new file",
         description="Add COUNT random obstacles within the arm's reach, the start and goal "
@@ -229,7 +228,7 @@ def _add_clutter_command(commands) -> None:
     _add_common_options(clutter)
     clutter.add_argument("scenario", help="a shipped scenario name or a path to a .toml file")
     clutter.add_argument("--count", type=_positive, required=True, help="obstacles to add")
-    clutter.add_argument("--kind", choices=KINDS, default="circles",
+    clutter.add_argument("--kind", choices=CLUTTER_KINDS, default="circles",
                          help="their shape (circles)")
     clutter.add_argument("--size", type=float, nargs=2, default=(1.0, 3.0),
                          metavar=("MIN", "MAX"), help="circumradius range in cm (1 3)")
@@ -303,7 +302,8 @@ def _add_reproduce_command(commands) -> None:
                            help="restarts of the case-1 study and the rules section (500; 100 "
                                 "with --quick)")
     reproduce.add_argument("--suite", help="comma-separated scenarios for the suite study "
-                                           "(default: all shipped; none with --quick)")
+                                           "(default: all shipped but clutter-100, "
+                                           "clutter-500 and workcell-map; none with --quick)")
     reproduce.add_argument("--suite-restarts", type=_positive,
                            help="restarts per suite scenario (200; 50 with --quick)")
     reproduce.add_argument("--degrees", type=_degrees,

@@ -163,7 +163,7 @@ ARM = jaxarm.Arm((30.0, 30.0, 20.0))
         ({"init_low": [-1.0, -1e5, -1.0]}, r"init_low\[1\] must be within \+-10000"),
         ({"margin": 1e300}, r"margin must be within \+-100000 cm, got 1e\+300"),
         ({"certify_tol": 1e-300}, r"certify_tol must be 0 or at least 1.18e-38 cm"),
-        ({"capacities": (10**9, 0, 4)}, r"capacities\[0\] must be <= 4096, got 1000000000"),
+        ({"capacities": (10**9, 0, 4)}, r"capacities\[0\] must be <= 65536, got 1000000000"),
         ({"capacities": (1.5, 0, 4)}, r"capacities\[0\] must be an integer, got 1.5"),
         ({"capacities": 4}, r"capacities must be 3 slot counts .* got 4"),
         ({"joint_limits": [(-1e39, 1.0)] * 3}, r"joint_limits\[0\]\[0\] must be within"),

@@ -77,7 +77,7 @@ def test_load_from_path_with_pose_and_overrides(tmp_path):
         (MINIMAL + "[search]\ncertify_tol = 1e-300",
          r"search.certify_tol must be 0 or at least 1.18e-38 cm in magnitude"),
         (MINIMAL + "[search]\ncapacities = [1000000000, 0, 0]",
-         r"search.capacities\[0\] must be <= 4096, got 1000000000"),
+         r"search.capacities\[0\] must be <= 65536, got 1000000000"),
         (MINIMAL + "[search]\ncapacities = 4", r"search.capacities must be 3 slot counts"),
         ("[arm]\nlengths = [30.0, 30.0, 20.0]\n[start]\njoints = [1.5, 0.5, 0.5]\n[goal]\n"
          "joints = [0, 1.5, 0]\n[[obstacles]]\ntype = 'circle'\ncenter = [100, 100]\nradius = 1\n"

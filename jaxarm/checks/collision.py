@@ -66,7 +66,7 @@ def posture_margin_depth(lengths, world, theta: list, margin=0.0, *, exact: bool
             total = total + nearby.over_blocks(
                 world, nearby.local_slots(world.near, index, *link),
                 lambda block, link=link: _add_link_margin_depth(
-                    jnp.zeros_like(total), link, block, margin, exact=exact), jnp.add)
+                    jnp.zeros_like(total), link, block, margin, exact=exact), jnp.add, 0.0)
         return total
     if exact and link_edge_pairs(len(links), world) > UNROLLED_LINK_EDGES:
         stacked = tuple(jnp.stack(coordinate) for coordinate in zip(*links))
@@ -133,7 +133,7 @@ def near_minimum(world, index, link, value):
     coordinates) at end points ``link``, each array at most the tables' reach: a lower
     bound on that value over every obstacle when it is a lower bound on a distance."""
     found = nearby.over_blocks(world, nearby.local_slots(world.near, index, *link), value,
-                               functools.partial(jax.tree.map, jnp.minimum))
+                               functools.partial(jax.tree.map, jnp.minimum), jnp.inf)
     reach = jnp.asarray(world.near.reach, link[0].dtype)
     return jax.tree.map(lambda a: jnp.minimum(a, reach), found)
 

@@ -4,7 +4,8 @@
 problem's world: centres uniform over the disk of the arm's reach (by area), sizes (the
 circumradius, cm) uniform in ``size``, each kept at least the problem's margin from every link
 at the start and the goal (tested on the obstacle's circumscribed circle, so a little
-further). The same seed gives the same world.
+further). With ``clear_path``, also from the arm along that path, so that the scene has a
+collision-free motion. The same seed gives the same world.
 """
 
 from __future__ import annotations
@@ -12,18 +13,19 @@ from __future__ import annotations
 import numpy as np
 
 from jaxarm._validate import check_seed, finite_vector, positive_int
-from jaxarm.choices import one_of
+from jaxarm.choices import CLUTTER_KINDS, one_of
 from jaxarm.model.problem import Problem
 from jaxarm.model.world import World
 
-KINDS = ("circles", "triangles", "boxes")
+KINDS = CLUTTER_KINDS
+CLEAR_PATH_SAMPLES = 1001  # instants of ``clear_path`` kept clear
 # Draws per obstacle before giving up: a scene whose postures leave too little room fails
 # with a message instead of looping.
 _TRIES_PER_OBSTACLE = 1000
 
 
 def clutter(problem: Problem, count: int, kind: str = "circles", size=(1.0, 3.0),
-            seed: int = 0) -> Problem:
+            seed: int = 0, clear_path=None) -> Problem:
     """The problem with ``count`` random obstacles added to its world.
 
     Args:
@@ -33,6 +35,10 @@ def clutter(problem: Problem, count: int, kind: str = "circles", size=(1.0, 3.0)
         circumcircle) or ``"boxes"`` (axis-aligned squares).
       size: ``(smallest, largest)`` circumradius, cm, 0 < smallest <= largest.
       seed: the random stream (an int >= 0).
+      clear_path: optional free parameters of a path, shape (n_free,), kept clear too (at
+        ``CLEAR_PATH_SAMPLES`` instants, with a spare of twice the farthest any link end moves
+        between two of them): then a collision-free motion exists. ``0`` stands for zeros,
+        the path with no free coefficients.
 
     Returns:
       A ``Problem`` named ``"<name>+<count> <kind>"``.
@@ -56,8 +62,12 @@ def clutter(problem: Problem, count: int, kind: str = "circles", size=(1.0, 3.0)
                          f"got {tuple(size)!r}")
     rng = np.random.default_rng(check_seed(seed))
     reach = problem.arm.reach
+    postures = [problem.start, problem.goal]
+    spare = 0.0
+    if clear_path is not None:
+        postures, spare = _path_postures(problem, clear_path)
     links = np.concatenate([_posture_links(problem.arm.lengths, posture)
-                            for posture in (problem.start, problem.goal)])
+                            for posture in postures])
     centres, radii = [], []
     tries = 0
     while len(centres) < count:
@@ -70,7 +80,7 @@ def clutter(problem: Problem, count: int, kind: str = "circles", size=(1.0, 3.0)
         angle = rng.uniform(0.0, 2.0 * np.pi)
         centre = distance * np.array([np.cos(angle), np.sin(angle)])
         radius = rng.uniform(low, high)
-        if _segment_distances(centre, links).min() > radius + problem.margin:
+        if _segment_distances(centre, links).min() > radius + problem.margin + spare:
             centres.append(centre)
             radii.append(radius)
     added = _shapes(kind, np.array(centres), np.array(radii), rng)
@@ -80,6 +90,20 @@ def clutter(problem: Problem, count: int, kind: str = "circles", size=(1.0, 3.0)
     return problem.replace(world=grown, capacities=None, name=f"{problem.name}+{count} {kind}",
                            description=f"{problem.name} with {count} random {kind} of size "
                            f"{low:g}-{high:g} cm (seed {seed})")
+
+
+def _path_postures(problem: Problem, clear_path):
+    """The postures along a path to keep clear, and the spare (cm) that covers the motion
+    between two of them."""
+    from jaxarm.model.path_functions import joint_path
+
+    x = np.broadcast_to(np.asarray(clear_path, dtype=np.float64), (problem.n_free,))
+    finite_vector("clear_path", x, problem.n_free)
+    r = np.linspace(0.0, 1.0, CLEAR_PATH_SAMPLES)
+    postures = np.asarray(joint_path(problem, x.astype(np.float32), r), dtype=np.float64)
+    ends = np.stack([_posture_links(problem.arm.lengths, p)[:, 2:] for p in postures])
+    step = np.linalg.norm(np.diff(ends, axis=0), axis=-1).max()
+    return list(postures), 2.0 * float(step)
 
 
 def _posture_links(lengths, theta) -> np.ndarray:

@@ -209,8 +209,10 @@ def gathered(world: WorldArrays, slots: NearSlots) -> WorldArrays:
     return WorldArrays(**fields)
 
 
-def over_blocks(world: WorldArrays, slots: NearSlots, value: Callable, combine: Callable):
-    """``combine`` of ``value(block)`` over blocks of ``BLOCK`` listed slots, in a scan.
+def over_blocks(world: WorldArrays, slots: NearSlots, value: Callable, combine: Callable,
+                identity: float):
+    """``combine`` of ``value(block)`` over blocks of ``BLOCK`` listed slots, in a scan whose
+    body is the program's one copy of ``value``.
 
     Args:
       world: the packed world.
@@ -219,6 +221,7 @@ def over_blocks(world: WorldArrays, slots: NearSlots, value: Callable, combine: 
       value: block world (``gathered``, BLOCK slots of one kind) -> a pytree of arrays of the
         links' shape (...).
       combine: (pytree, pytree) -> pytree, elementwise, associative (min, max, add).
+      identity: ``combine``'s identity (0 for add, inf for min), the value of no blocks.
 
     Returns:
       The combined pytree.
@@ -239,9 +242,9 @@ def over_blocks(world: WorldArrays, slots: NearSlots, value: Callable, combine: 
                     else NearSlots(no_circles, block))
             return value(gathered(world, only))
 
-        first = one_block(blocks[0])
-        if n_blocks > 1:
-            first, _ = jax.lax.scan(lambda carry, block: (combine(carry, one_block(block)),
-                                                         None), first, blocks[1:])
-        result = first if result is None else combine(result, first)
+        if result is None:
+            result = jax.tree.map(lambda shape: jnp.full(shape.shape, identity, shape.dtype),
+                                  jax.eval_shape(one_block, blocks[0]))
+        result, _ = jax.lax.scan(lambda carry, block: (combine(carry, one_block(block)), None),
+                                 result, blocks)
     return result

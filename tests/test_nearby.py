@@ -1,0 +1,151 @@
+"""The broad phase (``jaxarm.model.nearby``): sound lists, the same verdicts as testing every
+slot, no false "free" against the dense shapely oracle among hundreds of obstacles, and a
+program that does not grow with the obstacles."""
+
+import jax
+import numpy as np
+import pytest
+import shapely
+
+import jaxarm
+from jaxarm.checks import certified
+from jaxarm.checks.evaluate import evaluate
+from jaxarm.model import nearby
+from jaxarm.testing import dense_clearance, shapely_obstacles
+
+ARM = jaxarm.Arm((30.0, 30.0, 20.0))
+
+
+def corridor_world(rng, count: int, kind: str) -> jaxarm.World:
+    """``count`` small obstacles within reach, none in the sector the arm moves through (from
+    angle -0.35 to 0.85 rad), so that random slow paths are a mix of free and colliding."""
+    placed = []
+    while len(placed) < count:
+        x, y = rng.uniform(-85, 85, 2)
+        if 10 < np.hypot(x, y) < 85 and not -0.35 < np.arctan2(y, x) < 0.85:
+            placed.append((x, y, rng.uniform(0.3, 1.5)))
+    if kind == "circles":
+        return jaxarm.World(circles=placed)
+    return jaxarm.World(polygons=[[(x - r, y - r), (x + r, y - r), (x, y + r)]
+                                  for x, y, r in placed])
+
+
+def corridor_problem(rng, count, kind, collision="certified", margin=0.0):
+    return jaxarm.Problem(arm=ARM, start=[0.0, 0.0, 0.0], goal=[0.5, 0.0, 0.0],
+                          world=corridor_world(rng, count, kind), collision=collision,
+                          margin=margin, init_low=-60.0, init_high=60.0)
+
+
+def without_tables(problem):
+    """The problem's arrays with every slot tested (the broad phase off)."""
+    arrays = problem.arrays
+    return arrays._replace(world=arrays.world._replace(near=None))
+
+
+def test_small_worlds_have_no_tables_and_large_ones_do(rng):
+    assert jaxarm.load_scenario("mixed-clutter").arrays.world.near is None
+    problem = corridor_problem(rng, nearby.BROAD_PHASE_SLOTS + 1, "circles")
+    tables = problem.arrays.world.near
+    assert tables is not None and tables.circles.shape[-1] % nearby.BLOCK == 0
+    assert tables.circles.shape[0] == ARM.n_joints
+
+
+@pytest.mark.parametrize("kind", ["circles", "triangles"])
+def test_every_obstacle_within_reach_of_a_link_is_listed(rng, kind):
+    """Random segments of each link's length in the arm's reach: every obstacle closer than
+    the tables' reach (shapely) is in the list of the segment's midpoint cell."""
+    problem = corridor_problem(rng, 300, kind)
+    tables = problem.arrays.world.near
+    reach = float(tables.reach)
+    circles, polygons = shapely_obstacles(problem.world)
+    shapes = ([shapely.Point(c).buffer(r, 256) for c, r in circles] + polygons)
+    n_slots = len(circles) if kind == "circles" else len(polygons)
+    table = tables.circles if kind == "circles" else tables.polygons
+    for link, length in enumerate(ARM.lengths):
+        mid = rng.uniform(-1, 1, (400, 2)) * (ARM.reach - length / 2) / np.sqrt(2)
+        angle = rng.uniform(0, np.pi, 400)
+        half = 0.5 * length * np.stack([np.cos(angle), np.sin(angle)], -1)
+        lines = shapely.linestrings(np.stack([mid - half, mid + half], 1))
+        row, column = (np.asarray(a) for a in nearby.cell_of(
+            tables, mid[:, 0].astype(np.float32), mid[:, 1].astype(np.float32)))
+        for index, shape in enumerate(shapes):
+            near = np.nonzero(shapely.distance(lines, shape) <= reach)[0]
+            for k in near:
+                listed = table[link, row[k], column[k]]
+                assert index in listed[listed < n_slots], (link, index, k)
+
+
+@pytest.mark.parametrize("margin", [0.0, 1.0])
+def test_the_sampled_check_gives_the_same_verdicts_with_and_without_tables(rng, margin):
+    # just past the broad phase's threshold: testing every slot compiles slowly past it
+    problem = corridor_problem(rng, nearby.BROAD_PHASE_SLOTS + 2, "triangles",
+                               collision="sampled", margin=margin)
+    x = rng.uniform(-60, 60, (500, problem.n_free)).astype(np.float32)
+    run = jax.jit(lambda arrays, x: evaluate(problem.spec, arrays, x))
+    near, every = run(problem.arrays, x), run(without_tables(problem), x)
+    np.testing.assert_array_equal(near.fitness, every.fitness)
+    np.testing.assert_allclose(near.violation, every.violation, rtol=1e-5, atol=1e-6)
+    assert 0.2 < np.mean(np.asarray(near.fitness) > 0) < 0.99
+
+
+def test_the_certified_check_gives_the_same_verdicts_with_and_without_tables(rng):
+    problem = corridor_problem(rng, nearby.BROAD_PHASE_SLOTS + 2, "circles", margin=0.5)
+    x = rng.uniform(-60, 60, (400, problem.n_free)).astype(np.float32)
+    run = jax.jit(lambda arrays, x: certified.check(problem.spec, arrays, x))
+    near, every = run(problem.arrays, x), run(without_tables(problem), x)
+    for field in ("free", "colliding", "exhausted"):
+        np.testing.assert_array_equal(getattr(near, field), getattr(every, field))
+    assert np.asarray(near.free).sum() > 100 and np.asarray(near.colliding).sum() > 10
+    assert np.asarray(near.pieces).sum() > 0  # the bisection ran
+
+
+@pytest.mark.parametrize("kind", ["circles", "triangles"])
+def test_certified_free_among_hundreds_of_obstacles_is_free_for_the_dense_oracle(rng, kind):
+    """No path certified free comes closer than the margin at any of 20,001 times (shapely);
+    paths the oracle finds clear by 2 tolerances are certified."""
+    problem = corridor_problem(rng, 300, kind, margin=0.25)
+    x = rng.uniform(-60, 60, (300, problem.n_free))
+    certificate = jaxarm.certify(problem, x)
+    free = np.asarray(certificate.free)
+    rows = np.concatenate([np.nonzero(free)[0][:20], np.nonzero(~free)[0][:8]])
+    clearance = dense_clearance(problem, x[rows], 20_001, cutoff=2.0)
+    assert free.sum() >= 20 and (~free).sum() >= 8
+    assert np.all(clearance[free[rows]] >= problem.margin - 1e-4), clearance[free[rows]].min()
+    clear = clearance >= problem.margin + 2 * problem.certify_tol
+    assert np.all(free[rows][clear])
+
+
+def test_a_world_of_a_thousand_obstacles_compiles_the_program_of_two_hundred(rng):
+    """Obstacles are data: the traced check has as many operations for 1,000 circles as for
+    200 (a Python loop over slots would add some for each)."""
+    def size(count):
+        problem = corridor_problem(rng, count, "circles")
+        x = np.zeros((8, problem.n_free), np.float32)
+        jaxpr = jax.make_jaxpr(lambda arrays, x: evaluate(problem.spec, arrays, x))(
+            problem.arrays, x)
+        return count_equations(jaxpr.jaxpr)
+    # 64 obstacles fill one block per list, 200 and 1,000 several: the scan's length differs
+    assert size(1000) == size(200) > 1000
+    assert abs(size(1000) - size(64)) <= 0.01 * size(64)
+
+
+def count_equations(jaxpr) -> int:
+    """Operations in a jaxpr, those of the programs it calls (loops, branches) included."""
+    total = 0
+    for equation in jaxpr.eqns:
+        total += 1
+        for parameter in equation.params.values():
+            for inner in parameter if isinstance(parameter, (list, tuple)) else [parameter]:
+                inner = getattr(inner, "jaxpr", inner)
+                if hasattr(inner, "eqns"):
+                    total += count_equations(inner)
+    return total
+
+
+def test_a_start_colliding_in_a_large_world_names_the_obstacle(rng):
+    world = corridor_world(rng, 100, "circles")
+    circles = list(world.circles)
+    circles[77] = (55.0, 0.0, 2.0)  # on the first link at the start
+    with pytest.raises(ValueError, match=r"start posture .* overlaps circles\[77\]"):
+        jaxarm.Problem(arm=ARM, start=[0.0, 0.0, 0.0], goal=[0.5, 0.0, 0.0],
+                       world=jaxarm.World(circles=circles))

@@ -1,0 +1,150 @@
+"""Occupancy maps (``jaxarm.io.occupancy_maps``): map_server's reading of the pixels, the boxes
+that cover exactly the occupied cells, scenario files that name a map, and one-line errors."""
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import jaxarm
+from jaxarm.io.occupancy_maps import load_map, occupied_boxes
+from jaxarm.io.scenario_files import ScenarioError
+
+
+def write_map(folder, pixels, name="room", image_suffix=".pgm", **keys):
+    """A map of ``pixels`` (uint8, row 0 the top) and its YAML file; returns the YAML path."""
+    Image.fromarray(np.asarray(pixels, np.uint8)).save(folder / f"{name}{image_suffix}")
+    settings = {"image": f"{name}{image_suffix}", "resolution": 0.01,
+                "origin": [-0.5, -0.25, 0.0], "negate": 0, "occupied_thresh": 0.65,
+                "free_thresh": 0.196} | keys
+    lines = [f"{key}: {value}" for key, value in settings.items() if value is not None]
+    path = folder / f"{name}.yaml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_boxes_cover_exactly_the_occupied_cells(rng):
+    for _ in range(300):
+        occupied = rng.uniform(size=rng.integers(1, 25, 2)) < rng.uniform()
+        cover = np.zeros(occupied.shape, int)
+        for top, bottom, left, right in occupied_boxes(occupied):
+            cover[top:bottom, left:right] += 1
+        np.testing.assert_array_equal(cover, occupied)  # every cell once, no free cell
+
+
+def test_pixels_read_as_map_server_reads_them(tmp_path):
+    # occupancy (255 - p) / 255: 0 -> 1 occupied, 254 -> free, 205 -> 0.196 unknown
+    pixels = [[0, 254, 205], [254, 254, 254]]
+    grid = load_map(write_map(tmp_path, pixels))
+    np.testing.assert_array_equal(grid.occupied, [[True, False, True], [False, False, False]])
+    free = load_map(write_map(tmp_path, pixels), unknown="free")
+    np.testing.assert_array_equal(free.occupied, [[True, False, False], [False, False, False]])
+    negated = load_map(write_map(tmp_path, pixels, negate=1))
+    np.testing.assert_array_equal(negated.occupied, [[False, True, True], [True, True, True]])
+
+
+def test_row_zero_is_the_top_and_units_are_cm(tmp_path):
+    pixels = np.full((3, 4), 254)
+    pixels[0, 1] = 0  # top row, second column
+    grid = load_map(write_map(tmp_path, pixels))  # 1 cm cells, lower-left corner (-50, -25)
+    assert grid.resolution == pytest.approx(1.0)
+    [((xmin, ymin), (xmax, ymax))] = grid.boxes()
+    assert (xmin, xmax) == pytest.approx((-49.0, -48.0))
+    assert (ymin, ymax) == pytest.approx((-23.0, -22.0))
+
+
+def test_a_colour_png_averages_its_channels(tmp_path):
+    rgb = np.zeros((2, 2, 3), np.uint8)
+    rgb[0, 0] = (254, 254, 254)
+    rgb[1, 1] = (0, 254, 254)  # mean 169: occupancy 0.337, unknown
+    Image.fromarray(rgb).save(tmp_path / "room.png")
+    path = write_map(tmp_path, np.zeros((1, 1)), image_suffix=".png")
+    Image.fromarray(rgb).save(tmp_path / "room.png")
+    grid = load_map(path, unknown="free")
+    np.testing.assert_array_equal(grid.occupied, [[False, True], [True, False]])
+
+
+@pytest.mark.parametrize("keys, message", [
+    ({"image": "missing.pgm"}, r"image '.*missing.pgm' not found"),
+    ({"free_thresh": 0.7}, r"free_thresh <= occupied_thresh"),
+    ({"occupied_thresh": 1.5}, r"occupied_thresh <= 1"),
+    ({"origin": [0.0, 0.0, 0.3]}, r"origin yaw must be 0"),
+    ({"resolution": 0}, r"resolution must be > 0"),
+    ({"resolution": None}, r"missing 'resolution'"),
+    ({"negate": 2}, r"negate must be 0 or 1"),
+    ({"mode": "scale"}, r"mode must be 'trinary'"),
+    ({"colour": 1}, r"unknown key 'colour'"),
+])
+def test_a_bad_map_gets_one_line_naming_the_key(tmp_path, keys, message):
+    path = write_map(tmp_path, np.full((4, 4), 254), **keys)
+    with pytest.raises(ValueError, match=message) as error:
+        load_map(path)
+    assert "\n" not in str(error.value) and str(path) in str(error.value)
+
+
+def test_a_missing_map_file_and_a_wrong_unknown_value(tmp_path):
+    with pytest.raises(ValueError, match=r"cannot read map '.*nowhere.yaml'"):
+        load_map(tmp_path / "nowhere.yaml")
+    with pytest.raises(ValueError, match=r"unknown must be one of"):
+        load_map(write_map(tmp_path, np.full((2, 2), 254)), unknown="maybe")
+
+
+SCENARIO = """
+name = "{name}"
+[arm]
+lengths = [30.0, 30.0, 20.0]
+[start]
+joints = [{start}, 0.0, 0.0]
+[goal]
+joints = [0.5, 0.0, 0.0]
+[[obstacles]]
+type = "circle"
+center = [0.0, -70.0]
+radius = 3.0
+[[obstacles]]
+type = "map"
+file = "maps/room.yaml"
+{extra}
+"""
+
+
+def test_a_scenario_names_a_map_relative_to_itself(tmp_path):
+    (tmp_path / "maps").mkdir()
+    pixels = np.full((200, 200), 254)  # 2 m square at 1 cm, the base at its centre
+    pixels[40:60, 20:30] = 0  # x -80..-70, y 40..60
+    pixels[150:152, 150:190] = 205  # unknown: x 50..90, y -52..-50
+    write_map(tmp_path / "maps", pixels, origin=[-1.0, -1.0, 0.0])
+    path = tmp_path / "scenario.toml"
+    path.write_text(SCENARIO.format(name="room", start=0.0, extra=""))
+    problem = jaxarm.load_scenario(path)
+    assert len(problem.world.circles) == 1 and len(problem.world.boxes) == 2
+    path.write_text(SCENARIO.format(name="room", start=0.0, extra='unknown = "free"'))
+    assert len(jaxarm.load_scenario(path).world.boxes) == 1
+
+
+def test_a_posture_on_an_occupied_cell_names_the_map(tmp_path):
+    (tmp_path / "maps").mkdir()
+    pixels = np.full((200, 200), 254)
+    pixels[95:105, 150:160] = 0  # x 50..60 across y = 0: the start's second link
+    write_map(tmp_path / "maps", pixels, origin=[-1.0, -1.0, 0.0])
+    path = tmp_path / "scenario.toml"
+    path.write_text(SCENARIO.format(name="room", start=0.0, extra=""))
+    with pytest.raises(ScenarioError, match=r"start posture .* overlaps obstacles\[1\] \(box 0 "
+                                            r"of maps/room.yaml\)"):
+        jaxarm.load_scenario(path)
+
+
+def test_a_scenario_with_a_bad_map_says_which_obstacle(tmp_path):
+    path = tmp_path / "scenario.toml"
+    path.write_text(SCENARIO.format(name="room", start=0.0, extra=""))
+    with pytest.raises(ScenarioError, match=r"obstacles\[1\]: cannot read map"):
+        jaxarm.load_scenario(path)
+    path.write_text(SCENARIO.format(name="room", start=0.0, extra="colour = 1"))
+    with pytest.raises(ScenarioError, match=r"unknown key in obstacles\[1\]: 'colour'"):
+        jaxarm.load_scenario(path)
+
+
+def test_the_shipped_map_scene_is_certified_free_by_the_default_search():
+    problem = jaxarm.load_scenario("workcell-map")
+    assert problem.world.n_obstacles > 100 and problem.arrays.world.near is not None
+    result = jaxarm.solve(problem, n_restarts=4)
+    assert result.certified
