@@ -3,7 +3,9 @@
 # Python 3.12 and no network): fitness-kernel throughput (benchmarks/throughput.py), the escape
 # study's time up to 10,000 restarts (benchmarks/escape_bench.py), the certified search beside
 # the sampled one on paper-case-1 (benchmarks/certified_speed.py, 200 restarts: its dense shapely
-# oracle runs on the CPU, about 0.2 s per path) and the certified check's tests on the GPU, where
+# oracle runs on the CPU, about 0.2 s per path), scenes at scale (benchmarks/scene_scale.py: 16
+# and 1,000 circles, 16 and 250 triangles and the map, each row a fresh process with no
+# persistent cache; untested on a GPU so far) and the certified check's tests on the GPU, where
 # its bisection runs 1024 lanes when more than 2048 paths need it (4096 on CPU). Each step has
 # its own time limit (580 s in all: a device command may run 600; on an H200 at commit 7eae425
 # the steps took 2 s and 99 s (throughput at 5 repeats, now 3), the escape step ran out of 100
@@ -36,12 +38,14 @@ if [ -n "${QUICK:-}" ]; then
   restarts=(--repeats 1 --max-restarts 100)
   tests=(tests/test_certified.py -k "sound_and_not_too_conservative")
   certified=(--restarts 16 --repeats 1 --scenarios paper-case-1)
+  scale=(--circles 16 --triangles 16 --timeout 50)
 else
   batch=(--max-batch 1000000 --certified-max-batch 1000000 --numpy-max-batch 10000
          --repeats 3)
   restarts=(--repeats 3 --max-restarts 10000)
   tests=(tests/test_certified.py)
   certified=(--restarts 200 --repeats 3 --scenarios paper-case-1)
+  scale=(--circles 16,1000 --triangles 16,250 --map --timeout 25)
 fi
 platform=$("$PYTHON" -c "import jax; print('cuda' if jax.default_backend() == 'gpu' else 'cpu')")
 
@@ -60,5 +64,6 @@ print(\"jax\", jax.__version__, jax.devices(), \"jaxarm\", jaxarm.__version__)'"
 step throughput 90 "$PYTHON" benchmarks/throughput.py "${batch[@]}"
 step escape 115 "$PYTHON" benchmarks/escape_bench.py "${restarts[@]}"
 step certified 110 "$PYTHON" benchmarks/certified_speed.py "${certified[@]}"
-step tests 245 env JAX_PLATFORMS="$platform" "$PYTHON" -m pytest -q -p no:cacheprovider \
+step scale 110 "$PYTHON" benchmarks/scene_scale.py "${scale[@]}"
+step tests 135 env JAX_PLATFORMS="$platform" "$PYTHON" -m pytest -q -p no:cacheprovider \
   "${tests[@]}"

@@ -1,6 +1,7 @@
 """Scenes at scale: what a check and a search cost as the obstacles grow, from 4 to 1,000.
 
-Scenes: ``jaxarm.clutter`` on open-space (the 3-link arm, its start and goal clear), seed 0,
+Scenes: ``jaxarm.clutter`` on open-space (the 3-link arm; its start, goal and the path with
+no free coefficients kept clear), seed 0,
 circles (4 to 1,000) and triangles (4 to 250) of circumradius 0.5 to 3 cm, scaled by
 ``sqrt(64 / count)`` past 64 obstacles so that they cover about the same share of the reach
 (about 4 %); and the shipped map scene (``--map``, the scenario ``workcell-map``).
@@ -13,7 +14,8 @@ also ``solve(problem, "A:feasibility", n_restarts=50)``: its first call and one 
 ``--before`` turns the broad phase off (every slot written out in one program, as before it
 existed), with ``--timeout`` seconds per row.
 
-    .venv/bin/python benchmarks/scene_scale.py [--search] [--before] [--quick]
+    .venv/bin/python benchmarks/scene_scale.py [--map] [--search] [--before] [--quick]
+        [--circles 16,1000] [--triangles 250] [--checks certified]
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ def scene(kind: str, count: int):
         return jaxarm.load_scenario("workcell-map")
     scale = min(1.0, (64 / count) ** 0.5)
     return jaxarm.clutter(jaxarm.load_scenario("open-space"), count, kind,
-                          size=(0.5 * scale, 3.0 * scale), seed=0)
+                          size=(0.5 * scale, 3.0 * scale), seed=0, clear_path=0)
 
 
 def measure(kind: str, count: int, check: str, search: bool, before: bool) -> dict:
@@ -53,7 +55,7 @@ def measure(kind: str, count: int, check: str, search: bool, before: bool) -> di
     from jaxarm.model import nearby
 
     if before:
-        nearby.BROAD_PHASE_SLOTS = 10**9
+        nearby.BROAD_PHASE_WORK = 10**9
     problem = scene(kind, count).replace(collision=check)
     low, high = problem.bounds()
     x = np.random.default_rng(0).uniform(low, high, (PATHS, problem.n_free)).astype(np.float32)
@@ -103,21 +105,27 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="a few small scenes")
     parser.add_argument("--map", action="store_true", help="the map scene too")
     parser.add_argument("--timeout", type=float, default=900.0, help="s per row")
+    parser.add_argument("--circles", help="comma-separated counts (default: 4 to 1000)")
+    parser.add_argument("--triangles", help="comma-separated counts (default: 4 to 250)")
+    parser.add_argument("--checks", default="sampled,certified", help="comma-separated")
     parser.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
         kind, count, check = args.child
         print(json.dumps(measure(kind, int(count), check, args.search, args.before)))
         return
-    scenes = ([("circles", n) for n in ((4, 64) if args.quick else CIRCLES)]
-              + [("triangles", n) for n in ((4, 64) if args.quick else TRIANGLES)]
+    counts = {kind: ([int(n) for n in given.split(",")] if given else (4, 64) if args.quick
+                     else default) for kind, given, default in (
+                         ("circles", args.circles, CIRCLES),
+                         ("triangles", args.triangles, TRIANGLES))}
+    scenes = ([(kind, n) for kind in ("circles", "triangles") for n in counts[kind]]
               + [("map", 0)] * args.map)
     header = ("| scene | obstacles | check | paths/s (warm) | first call (s) | peak memory (GB) |"
               + (" search first / warm (s) | escapes /50 |" if args.search else ""))
     print(header)
     print("|" + "---|" * (header.count("|") - 1))
     for kind, count in scenes:
-        for check in ("sampled", "certified"):
+        for check in args.checks.split(","):
             row = run_row(kind, count, check, args)
             name = "map" if kind == "map" else f"{count} {kind}"
             if row is None:

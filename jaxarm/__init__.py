@@ -73,6 +73,7 @@ _EXPORTS = {
     "escape_study": "jaxarm.study",
     "World": "jaxarm.model.world",
     "clutter": "jaxarm.model.clutter",
+    "load_map": "jaxarm.io.occupancy_maps",
     "Trajectory": "jaxarm.trajectory",
     "TrajectoryPoint": "jaxarm.trajectory",
     "min_duration": "jaxarm.trajectory",

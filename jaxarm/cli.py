@@ -233,6 +233,9 @@ def _add_clutter_command(commands) -> None:
     clutter.add_argument("--size", type=float, nargs=2, default=(1.0, 3.0),
                          metavar=("MIN", "MAX"), help="circumradius range in cm (1 3)")
     clutter.add_argument("--seed", type=int, default=0, help="the random stream (0)")
+    clutter.add_argument("--clear-path", action="store_true",
+                         help="keep the path with no free coefficients clear too, so that the "
+                              "scene has a collision-free motion")
     clutter.add_argument("--output", "-o", type=pathlib.Path, required=True,
                          help="the scenario file to write (.toml)")
 
@@ -245,7 +248,7 @@ def _clutter(args) -> None:
         raise ValueError(f"--output must end in .toml, got {str(args.output)!r}")
     try:
         problem = clutter(load_scenario(args.scenario), args.count, args.kind, args.size,
-                          args.seed)
+                          args.seed, clear_path=0 if args.clear_path else None)
     except ValueError as error:
         raise ValueError(_flag_names(str(error))) from None
     _write(args.output, lambda path: save_scenario(problem, path))

@@ -44,7 +44,7 @@ def without_tables(problem):
 
 def test_small_worlds_have_no_tables_and_large_ones_do(rng):
     assert jaxarm.load_scenario("mixed-clutter").arrays.world.near is None
-    problem = corridor_problem(rng, nearby.BROAD_PHASE_SLOTS + 1, "circles")
+    problem = corridor_problem(rng, nearby.BROAD_PHASE_WORK + 1, "circles")
     tables = problem.arrays.world.near
     assert tables is not None and tables.circles.shape[-1] % nearby.BLOCK == 0
     assert tables.circles.shape[0] == ARM.n_joints
@@ -78,7 +78,7 @@ def test_every_obstacle_within_reach_of_a_link_is_listed(rng, kind):
 @pytest.mark.parametrize("margin", [0.0, 1.0])
 def test_the_sampled_check_gives_the_same_verdicts_with_and_without_tables(rng, margin):
     # just past the broad phase's threshold: testing every slot compiles slowly past it
-    problem = corridor_problem(rng, nearby.BROAD_PHASE_SLOTS + 2, "triangles",
+    problem = corridor_problem(rng, nearby.BROAD_PHASE_WORK // 3 + 1, "triangles",
                                collision="sampled", margin=margin)
     x = rng.uniform(-60, 60, (500, problem.n_free)).astype(np.float32)
     run = jax.jit(lambda arrays, x: evaluate(problem.spec, arrays, x))
@@ -89,7 +89,7 @@ def test_the_sampled_check_gives_the_same_verdicts_with_and_without_tables(rng, 
 
 
 def test_the_certified_check_gives_the_same_verdicts_with_and_without_tables(rng):
-    problem = corridor_problem(rng, nearby.BROAD_PHASE_SLOTS + 2, "circles", margin=0.5)
+    problem = corridor_problem(rng, nearby.BROAD_PHASE_WORK + 1, "circles", margin=0.5)
     x = rng.uniform(-60, 60, (400, problem.n_free)).astype(np.float32)
     run = jax.jit(lambda arrays, x: certified.check(problem.spec, arrays, x))
     near, every = run(problem.arrays, x), run(without_tables(problem), x)

@@ -1,6 +1,7 @@
 """The broad phase: which obstacles are near a link, so that a check pays for those alone.
 
-A world with more than ``BROAD_PHASE_SLOTS`` obstacle slots gets ``NearTables``, built once on
+A world of more than ``BROAD_PHASE_WORK`` circle slots and polygon edges (``slot_work``) gets
+``NearTables``, built once on
 the host: a uniform grid over the arm's reach and, per link and cell, the slots of every
 obstacle whose bounding box comes within ``link length / 2 + cell half-diagonal + reach``
 of the cell's centre (``reach`` in cm, the tables' guarantee). A link whose midpoint lies in
@@ -28,9 +29,11 @@ from jaxarm.model.world import WorldArrays
 # Slots tested per step of a scan over obstacles: written out within a block (the kernels'
 # fast form), scanned across blocks.
 BLOCK = 16
-# Worlds with more circle and polygon slots than this get the broad phase (``NearTables``);
-# smaller ones keep every slot written out in one program.
-BROAD_PHASE_SLOTS = 32
+# Worlds of more slot work than this get the broad phase (``NearTables``); smaller ones keep
+# every slot written out in one program, which runs faster there (``benchmarks/RESULTS.md``,
+# "Scenes at scale": 64 circles or 16 triangles written out, the last sizes before that
+# form's cliff).
+BROAD_PHASE_WORK = 64
 # Cells per axis of the grid over the arm's reach.
 GRID_CELLS = 48
 
@@ -50,10 +53,16 @@ class NearTables(NamedTuple):
     polygons: np.ndarray  # shape=(n_links, n_cells, n_cells, k_polygons), int32 polygon slots
 
 
+def slot_work(capacities: tuple[int, int, int]) -> int:
+    """What a world packed at ``capacities`` costs a link written out: its circle slots plus
+    its polygon slots' edges."""
+    circles, polygons, vertices = capacities
+    return circles + polygons * vertices
+
+
 def uses_broad_phase(capacities: tuple[int, int, int]) -> bool:
     """Whether a world packed at ``capacities`` gets ``NearTables`` (static)."""
-    circles, polygons, _ = capacities
-    return circles + polygons > BROAD_PHASE_SLOTS
+    return slot_work(capacities) > BROAD_PHASE_WORK
 
 
 def default_reach(lengths, margin: float, certified: bool) -> float:
