@@ -1,15 +1,14 @@
 """The broad phase: which obstacles are near a link, so that a check pays for those alone.
 
-A world of more than ``BROAD_PHASE_WORK`` circle slots and polygon edges (``slot_work``) gets
-``NearTables``, built once on
-the host: a uniform grid over the arm's reach and, per link and cell, the slots of every
-obstacle whose bounding box comes within ``link length / 2 + cell half-diagonal + reach``
-of the cell's centre (``reach`` in cm, the tables' guarantee). A link whose midpoint lies in
-that cell is then, from every obstacle left out of the list, at least ``reach`` away: the
-checks test the listed obstacles exactly (``local_slots``) and bound the others by
-``reach`` (``NearTables.reach``), so every bound stays a lower bound on the true distance
-and every verdict stays sound. Smaller worlds keep their slots written out in one program
-(today's kernels, bit for bit).
+A world of more than ``BROAD_PHASE_WORK`` circle slots and polygon edges (``slot_work``)
+gets ``NearTables``, built once on the host: a uniform grid over the arm's reach and, per link
+and cell, the slots of every obstacle whose bounding box comes within ``link length / 2 +
+cell half-diagonal + reach`` of the cell's centre (``reach`` in cm, the tables' guarantee). A
+link whose midpoint lies in that cell is then, from every obstacle left out of the list, at
+least ``reach`` away: the checks test the listed obstacles exactly (``local_slots``) and
+bound the others by ``reach`` (``NearTables.reach``), so every bound stays a lower bound on
+the true distance and every verdict stays sound. Smaller worlds keep every slot written out
+in one program, the kernels of ``jaxarm.model.world`` as they were, bit for bit.
 
 Obstacles are data here: the listed slots are gathered per link and tested in blocks of
 ``BLOCK`` slots in a ``lax.scan`` (``over_blocks``), so the compiled program does not grow
@@ -24,7 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm.model.world import WorldArrays
+from jaxarm.model.world import CIRCLE_FIELDS, POLYGON_FIELDS, WorldArrays
 
 # Slots tested per step of a scan over obstacles: written out within a block (the kernels'
 # fast form), scanned across blocks.
@@ -37,9 +36,6 @@ BROAD_PHASE_WORK = 64
 # Cells per axis of the grid over the arm's reach.
 GRID_CELLS = 48
 
-_CIRCLE_FIELDS = ("circles", "circle_valid")
-_POLYGON_FIELDS = ("vertices", "normals", "extent_low", "extent_high", "edge_valid",
-                   "polygon_valid")
 
 
 class NearTables(NamedTuple):
@@ -209,7 +205,7 @@ def gathered(world: WorldArrays, slots: NearSlots) -> WorldArrays:
              "polygon_valid": False}
     batch_ndim = slots.circles.ndim - 1
     fields = {}
-    for names, index in ((_CIRCLE_FIELDS, slots.circles), (_POLYGON_FIELDS, slots.polygons)):
+    for names, index in ((CIRCLE_FIELDS, slots.circles), (POLYGON_FIELDS, slots.polygons)):
         for name in names:
             values = _with_empty_slot(getattr(world, name), empty[name])[index]
             # (..., k, *slot data) -> (k, *slot data, ...): each slot's data gathered whole

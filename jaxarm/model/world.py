@@ -44,9 +44,10 @@ class WorldArrays(NamedTuple):
     near: object = None
 
 
-# The WorldArrays fields with one entry per polygon slot.
-_POLYGON_FIELDS = ("vertices", "normals", "extent_low", "extent_high", "edge_valid",
-                   "polygon_valid")
+# The WorldArrays fields with one entry per circle slot, and per polygon slot.
+CIRCLE_FIELDS = ("circles", "circle_valid")
+POLYGON_FIELDS = ("vertices", "normals", "extent_low", "extent_high", "edge_valid",
+                  "polygon_valid")
 
 
 def slot_capacity(count: int) -> int:
@@ -450,7 +451,7 @@ def polygon_slots(sx, sy, ex, ey, world: WorldArrays, *, exact: bool) -> list:
 
 def _map_polygon_slots(world: WorldArrays, change) -> WorldArrays:
     """The world with ``change`` applied to each per-polygon-slot array (slots first)."""
-    return world._replace(**{name: change(getattr(world, name)) for name in _POLYGON_FIELDS})
+    return world._replace(**{name: change(getattr(world, name)) for name in POLYGON_FIELDS})
 
 
 def one_polygon(world: WorldArrays, slot: int) -> WorldArrays:
