@@ -17,7 +17,6 @@ from jaxarm.choices import CLUTTER_KINDS, one_of
 from jaxarm.model.problem import Problem
 from jaxarm.model.world import World
 
-KINDS = CLUTTER_KINDS
 CLEAR_PATH_SAMPLES = 1001  # instants of ``clear_path`` kept clear
 # Draws per obstacle before giving up: a scene whose postures leave too little room fails
 # with a message instead of looping.
@@ -55,7 +54,7 @@ def clutter(problem: Problem, count: int, kind: str = "circles", size=(1.0, 3.0)
     if not isinstance(problem, Problem):
         raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
     count = positive_int("count", count, minimum=1, maximum=100_000)
-    one_of("kind", kind, KINDS)
+    one_of("kind", kind, CLUTTER_KINDS)
     low, high = (float(v) for v in finite_vector("size", size, length=2))
     if not 0 < low <= high:
         raise ValueError(f"size must be (smallest, largest) with 0 < smallest <= largest (cm), "

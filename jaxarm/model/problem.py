@@ -227,11 +227,12 @@ class Problem:
         """Start, then goal: neither may overlap an obstacle or come closer than the margin."""
         dtype = jnp.result_type(float)
         lengths = np.asarray(self.arm.lengths, dtype=dtype)
+        parts = [(part.pack(capacities), part.slot_names(capacities))
+                 for part, capacities in _posture_parts(self.world, self.capacities)]
         for which in ("start", "goal"):
             theta = np.asarray(getattr(self, which), dtype=dtype)
-            for part, capacities in _posture_parts(self.world, self.capacities):
-                self._check_posture(which, theta, lengths, part.pack(capacities),
-                                    part.slot_names(capacities))
+            for world, names in parts:
+                self._check_posture(which, theta, lengths, world, names)
 
     def _check_posture(self, which: str, theta, lengths, world, names) -> None:
         depth = np.asarray(_posture_depth(lengths, world, theta))
