@@ -64,7 +64,7 @@ def posture_margin_depth(lengths, world, theta: list, margin=0.0, *, exact: bool
     if world.near is not None:
         for index, link in enumerate(links):
             total = total + nearby.over_blocks(
-                world, nearby.local_slots(world.near, index, *link),
+                world.near, nearby.near_cells(world.near, index, *link),
                 lambda block, link=link: _add_link_margin_depth(
                     jnp.zeros_like(total), link, block, margin, exact=exact), jnp.add, 0.0)
         return total
@@ -132,7 +132,7 @@ def near_minimum(world, index, link, value):
     slots listed near link ``index`` (an int, or ints broadcasting with the link's
     coordinates) at end points ``link``, each array at most the tables' reach: a lower
     bound on that value over every obstacle when it is a lower bound on a distance."""
-    found = nearby.over_blocks(world, nearby.local_slots(world.near, index, *link), value,
+    found = nearby.over_blocks(world.near, nearby.near_cells(world.near, index, *link), value,
                                functools.partial(jax.tree.map, jnp.minimum), jnp.inf)
     reach = jnp.asarray(world.near.reach, link[0].dtype)
     return jax.tree.map(lambda a: jnp.minimum(a, reach), found)

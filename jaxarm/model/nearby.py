@@ -1,18 +1,23 @@
 """The broad phase: which obstacles are near a link, so that a check pays for those alone.
 
 A world of more than ``BROAD_PHASE_WORK`` circle slots and polygon edges (``slot_work``)
-gets ``NearTables``, built once on the host: a uniform grid over the arm's reach and, per link
-and cell, the slots of every obstacle whose bounding box comes within ``link length / 2 +
-cell half-diagonal + reach`` of the cell's centre (``reach`` in cm, the tables' guarantee). A
-link whose midpoint lies in that cell is then, from every obstacle left out of the list, at
-least ``reach`` away: the checks test the listed obstacles exactly (``local_slots``) and
-bound the others by ``reach`` (``NearTables.reach``), so every bound stays a lower bound on
-the true distance and every verdict stays sound. Smaller worlds keep every slot written out
-in one program, the kernels of ``jaxarm.model.world`` as they were, bit for bit.
+gets ``NearTables``, built once on the host: a uniform grid over the arm's reach, the link's
+direction in ``DIRECTION_BINS`` bins, and per link, bin and cell the slots of every obstacle
+whose bounding box comes within ``width`` of the segment of the link's length through the
+cell's centre along the bin's middle direction, where ``width`` = the cell's half-diagonal +
+how far a turn within the bin moves the link's points + ``reach`` (cm, the tables'
+guarantee). A link whose midpoint lies in that cell and whose direction lies in that bin is
+then, from every obstacle left out of the list, at least ``reach`` away: the checks test the
+listed obstacles exactly and bound the others by ``reach`` (``NearTables.reach``), so every
+bound stays a lower bound on the true distance and every verdict stays sound. Smaller worlds
+keep every slot written out in one program, the kernels of ``jaxarm.model.world`` as they
+were, bit for bit.
 
-Obstacles are data here: the listed slots are gathered per link and tested in blocks of
-``BLOCK`` slots in a ``lax.scan`` (``over_blocks``), so the compiled program does not grow
-with the number of obstacles, and a batch's working set holds one block at a time.
+Obstacles are data here: each list's slots are stored with their numbers, in blocks, one
+contiguous row per block (a row gathered whole costs far less than its slots gathered one
+by one through an index list), and tested block by block in a ``lax.scan``
+(``over_blocks``), so the compiled program does not grow with the number of obstacles, and a
+batch's working set holds one block at a time.
 """
 
 from __future__ import annotations
@@ -25,9 +30,11 @@ import numpy as np
 
 from jaxarm.model.world import CIRCLE_FIELDS, POLYGON_FIELDS, WorldArrays
 
-# Slots tested per step of a scan over obstacles: written out within a block (the kernels'
-# fast form), scanned across blocks.
+# Slots tested per step of a scan over obstacles, circles and polygons: written out within
+# a block (the kernels' fast form), scanned across blocks. A list is padded to whole blocks;
+# a polygon slot has more numbers, and its smaller block pads less.
 BLOCK = 16
+POLYGON_BLOCK = 8
 # Worlds of more slot work than this get the broad phase (``NearTables``); smaller ones keep
 # every slot written out in one program, which runs faster there (``benchmarks/RESULTS.md``,
 # "Scenes at scale": 64 circles or 16 triangles written out, the last sizes before that
@@ -35,18 +42,33 @@ BLOCK = 16
 BROAD_PHASE_WORK = 64
 # Cells per axis of the grid over the arm's reach.
 GRID_CELLS = 48
+# Bins of a link's direction (modulo pi: a segment is the same whichever way it points): a
+# list need only hold what lies near the links of one direction, a strip rather than a disc.
+DIRECTION_BINS = 16
 
 
 
 class NearTables(NamedTuple):
-    """Which obstacle slots lie near a link whose midpoint is in a grid cell (a pytree of
-    arrays; ``build`` makes it)."""
+    """The obstacles near a link whose midpoint is in a grid cell and whose direction is in
+    a bin, as data (a pytree of arrays; ``build`` makes it).
+
+    ``circles`` and ``polygons`` hold the listed slots' own numbers: each of the world's fields
+    of that kind (``CIRCLE_FIELDS``, ``POLYGON_FIELDS``), of shape (n_blocks * M, block,
+    *slot data), M = n_links * DIRECTION_BINS * n_cells**2 lists: row b * M + c holds block b
+    of list c (``near_cells``), so that a block of a link's list is one contiguous row,
+    gathered by the list's number alone (``block_world``), with no index list to follow.
+    """
 
     origin: np.ndarray  # shape=(2,), cm: the grid's lower-left corner
     inverse_cell: np.ndarray  # shape=(), 1 / cell size (1 / cm)
     reach: np.ndarray  # shape=(), cm: every slot not listed is at least this far from the link
-    circles: np.ndarray  # shape=(n_links, n_cells, n_cells, k_circles), int32 circle slots
-    polygons: np.ndarray  # shape=(n_links, n_cells, n_cells, k_polygons), int32 polygon slots
+    # The lists as slot indices, shape (n_links, DIRECTION_BINS, n_cells, n_cells, k), int32,
+    # padded with the count of slots (no slot): what ``circles`` and ``polygons`` hold the
+    # numbers of (in the type JAX computes in, float32 unless x64 is on).
+    circle_lists: np.ndarray
+    polygon_lists: np.ndarray
+    circles: tuple  # CIRCLE_FIELDS' listed numbers (see above); () without circle slots
+    polygons: tuple  # POLYGON_FIELDS' listed numbers; () without polygon slots
 
 
 def slot_work(capacities: tuple[int, int, int]) -> int:
@@ -80,28 +102,36 @@ def build(world: WorldArrays, lengths, reach: float) -> NearTables:
       reach: cm, > 0: the distance every slot left out of a list keeps from the link.
 
     Returns:
-      ``NearTables``; each list is padded with the slot index one past the last slot, which
-      ``local_slots`` reads as an empty slot, to a multiple of ``BLOCK``.
+      ``NearTables``; each list is padded with an empty slot (far away and masked) to a
+      multiple of ``BLOCK``.
     """
     lengths = np.asarray(lengths, dtype=np.float64)
     arm_reach = float(np.sum(lengths))
     cell = 2.0 * arm_reach / GRID_CELLS
-    origin = np.array([-arm_reach, -arm_reach])
     centres = -arm_reach + cell * (np.arange(GRID_CELLS) + 0.5)  # the same along x and y
-    # Widened for float32: a midpoint rounded into a neighbouring cell, a rounded length.
+    # Widened for float32: a midpoint rounded into a neighbouring cell, an angle into a
+    # neighbouring bin, a rounded length.
     half_diagonal = cell * np.sqrt(0.5) * (1.0 + 1e-3)
+    half_bin = 0.5 * np.pi / DIRECTION_BINS + 1e-3
     slack = 1e-4 * arm_reach
-    circle_low, circle_high = _circle_boxes(world)
-    polygon_low, polygon_high = _polygon_boxes(world)
-    circle_lists, polygon_lists = [], []
+    boxes = {"circles": _circle_boxes(world), "polygons": _polygon_boxes(world)}
+    lists = {kind: [] for kind in boxes}
     for length in lengths:
-        radius = 0.5 * length + half_diagonal + reach + slack
-        circle_lists.append(_near_lists(centres, circle_low, circle_high, radius))
-        polygon_lists.append(_near_lists(centres, polygon_low, polygon_high, radius))
+        # Every point of a link whose midpoint is in the cell and whose direction is in the
+        # bin lies within this of the segment through the cell's centre along the bin's
+        # middle direction (a turn by at most half_bin moves a point at t from the
+        # midpoint by 2 |t| sin(half_bin / 2)).
+        width = half_diagonal + length * np.sin(0.5 * half_bin) + reach + slack
+        for kind, (low, high) in boxes.items():
+            lists[kind].append(_near_lists(centres, low, high, length, width))
+    circle_lists = _padded(lists["circles"], len(boxes["circles"][0]), BLOCK)
+    polygon_lists = _padded(lists["polygons"], len(boxes["polygons"][0]), POLYGON_BLOCK)
     return NearTables(
-        origin=origin, inverse_cell=np.asarray(1.0 / cell), reach=np.asarray(float(reach)),
-        circles=_padded(circle_lists, len(circle_low)),
-        polygons=_padded(polygon_lists, len(polygon_low)))
+        origin=np.array([-arm_reach, -arm_reach]), inverse_cell=np.asarray(1.0 / cell),
+        reach=np.asarray(float(reach)), circle_lists=circle_lists,
+        polygon_lists=polygon_lists,
+        circles=_listed_numbers(world, CIRCLE_FIELDS, circle_lists, BLOCK),
+        polygons=_listed_numbers(world, POLYGON_FIELDS, polygon_lists, POLYGON_BLOCK))
 
 
 def _circle_boxes(world: WorldArrays):
@@ -126,41 +156,100 @@ def _only_valid(low, high, valid):
     return low, high
 
 
-def _near_lists(centres, low, high, radius) -> list:
-    """Per cell (row y, column x), the slots whose box comes within ``radius`` of the cell's
-    centre, ascending; a list of n_cells lists of n_cells int arrays."""
+def _near_lists(centres, low, high, length, width) -> list:
+    """Per direction bin, the (cell, slot) pairs of the slots whose box comes within
+    ``width`` of the segment of ``length`` through the cell's centre along the bin's middle
+    direction, by the largest gap of their projections on four axes (x, y and the segment's
+    direction and normal: each a lower bound on the distance); a list of ``DIRECTION_BINS``
+    pairs of int arrays (cell = row * n_cells + column), ascending."""
+    n_cells = len(centres)
     if not len(low):
-        return [[np.zeros(0, np.int64)] * len(centres)] * len(centres)
+        return [(np.zeros(0, np.int64), np.zeros(0, np.int64))] * DIRECTION_BINS
+    # Candidates: within length / 2 + width of the centre, whatever the direction.
     gap_x = np.maximum(np.maximum(low[None, :, 0] - centres[:, None],
                                   centres[:, None] - high[None, :, 0]), 0.0)  # (n_cells, n)
     gap_y = np.maximum(np.maximum(low[None, :, 1] - centres[:, None],
                                   centres[:, None] - high[None, :, 1]), 0.0)
-    rows = []
-    for row in range(len(centres)):
-        near = gap_y[row][None, :] ** 2 + gap_x ** 2 <= radius * radius  # (n_cells, n)
-        rows.append([np.nonzero(cell)[0] for cell in near])
-    return rows
+    radius = 0.5 * length + width
+    cells, slots = [], []
+    for row in range(n_cells):
+        column, slot = np.nonzero(gap_y[row][None, :] ** 2 + gap_x ** 2 <= radius * radius)
+        cells.append(row * n_cells + column)
+        slots.append(slot)
+    cells, slots = np.concatenate(cells), np.concatenate(slots)
+    mid = np.stack([centres[cells % n_cells], centres[cells // n_cells]], axis=-1)
+    low, high = low[slots], high[slots]
+    per_bin = []
+    for direction in (np.arange(DIRECTION_BINS) + 0.5) * (np.pi / DIRECTION_BINS):
+        along = np.array([np.cos(direction), np.sin(direction)])
+        gaps = [_projection_gap(mid, low, high, axis, half)
+                for axis, half in ((np.array([1.0, 0.0]), 0.5 * length * abs(along[0])),
+                                   (np.array([0.0, 1.0]), 0.5 * length * abs(along[1])),
+                                   (along, 0.5 * length),
+                                   (np.array([-along[1], along[0]]), 0.0))]
+        near = np.max(gaps, axis=0) <= width
+        per_bin.append((cells[near], slots[near]))
+    return per_bin
 
 
-def _padded(per_link: list, n_slots: int) -> np.ndarray:
-    """Lists as one int32 array (n_links, n_cells, n_cells, k), k a multiple of ``BLOCK``
-    (at least one block), padded with ``n_slots`` (an empty slot): a cell's list is one
-    contiguous row, gathered whole."""
-    longest = max((len(cell) for rows in per_link for row in rows for cell in row), default=0)
-    k = BLOCK * max(1, -(-longest // BLOCK))
-    n_cells = len(per_link[0])
-    table = np.full((len(per_link), n_cells, n_cells, k), n_slots, np.int32)
-    for link, rows in enumerate(per_link):
-        for y, row in enumerate(rows):
-            for x, cell in enumerate(row):
-                table[link, y, x, :len(cell)] = cell
-    return table
+def _projection_gap(mid, low, high, axis, half):
+    """The gap between the projections on ``axis`` (a unit vector) of segments centred at
+    ``mid`` reaching ``half`` either way along it, and boxes (``low``, ``high``), each of
+    shape (n, 2): a lower bound on their distance (<= 0 where the projections overlap)."""
+    centre = mid @ axis
+    box_low = np.minimum(low * axis, high * axis).sum(axis=-1)
+    box_high = np.maximum(low * axis, high * axis).sum(axis=-1)
+    return np.maximum(box_low - (centre + half), (centre - half) - box_high)
+
+
+def _padded(per_link: list, n_slots: int, block: int) -> np.ndarray:
+    """Lists (``_near_lists`` per link) as one int32 array (n_links, DIRECTION_BINS,
+    n_cells, n_cells, k), k a multiple of ``block`` (at least one block), padded with
+    ``n_slots`` (an empty slot)."""
+    n_lists = GRID_CELLS * GRID_CELLS
+    counts = [np.bincount(cells, minlength=n_lists) for per_bin in per_link
+              for cells, _ in per_bin]
+    longest = max((int(count.max()) for count in counts), default=0)
+    k = block * max(1, -(-longest // block))
+    table = np.full((len(per_link), DIRECTION_BINS, n_lists, k), n_slots, np.int32)
+    for link, per_bin in enumerate(per_link):
+        for direction, (cells, slots) in enumerate(per_bin):
+            order = np.lexsort((slots, cells))
+            cells, slots = cells[order], slots[order]
+            first = np.searchsorted(cells, cells)  # the first pair of each one's cell
+            table[link, direction, cells, np.arange(len(cells)) - first] = slots
+    return table.reshape(len(per_link), DIRECTION_BINS, GRID_CELLS, GRID_CELLS, k)
+
+
+# The numbers of an empty slot, far from any arm and masked (the lists' padding).
+_EMPTY = {"circles": 1e4, "circle_valid": False, "vertices": 1e4, "normals": 0.0,
+          "extent_low": 0.0, "extent_high": 0.0, "edge_valid": False, "polygon_valid": False}
+
+
+def _listed_numbers(world: WorldArrays, names: tuple, lists: np.ndarray, block: int) -> tuple:
+    """The numbers of the listed slots, field by field, in ``NearTables``' layout; () for a
+    world without slots of this kind."""
+    if not getattr(world, names[0]).shape[0]:
+        return ()
+    k = lists.shape[-1]
+    n_blocks = k // block
+    numbers = []
+    for name in names:
+        values = np.asarray(getattr(world, name))
+        values = values.astype(jax.dtypes.canonicalize_dtype(values.dtype))  # float64 -> 32
+        values = np.concatenate([values, np.full((1,) + values.shape[1:], _EMPTY[name],
+                                                 values.dtype)])
+        listed = values[lists].reshape((-1, n_blocks, block) + values.shape[1:])
+        # (lists, blocks, block, *data) -> (blocks * lists, block, *data)
+        listed = np.moveaxis(listed, 1, 0)
+        numbers.append(np.ascontiguousarray(listed.reshape((-1,) + listed.shape[2:])))
+    return tuple(numbers)
 
 
 def cell_of(tables: NearTables, mid_x, mid_y):
     """The grid cell (row, column) of points, each of their shape (...), clamped to the grid
     (every link's midpoint lies within the arm's reach, inside the grid)."""
-    n_cells = tables.circles.shape[1]
+    n_cells = tables.circle_lists.shape[-2]
     scale = jnp.asarray(tables.inverse_cell, mid_x.dtype)
     origin = jnp.asarray(tables.origin, mid_x.dtype)
 
@@ -170,86 +259,68 @@ def cell_of(tables: NearTables, mid_x, mid_y):
     return index(mid_y, origin[1]), index(mid_x, origin[0])
 
 
-class NearSlots(NamedTuple):
-    """The obstacle slots listed near links (``local_slots``), each of the links' shape (...)
-    plus a last axis of the list's length."""
-
-    circles: jax.Array  # int32 circle slots (the count of slots: an empty one)
-    polygons: jax.Array  # int32 polygon slots
-
-
-def local_slots(tables: NearTables, link, sx, sy, ex, ey) -> NearSlots:
-    """The slots listed near links ``link`` (an int, or an int array broadcasting with the
-    coordinates) with end points (sx, sy), (ex, ey), each coordinate of shape (...)."""
+def near_cells(tables: NearTables, link, sx, sy, ex, ey):
+    """Which list holds the slots near links ``link`` (an int, or an int array broadcasting
+    with the coordinates) with end points (sx, sy), (ex, ey), each coordinate of shape (...):
+    int32 of that shape, ``NearTables``' c."""
     row, column = cell_of(tables, 0.5 * (sx + ex), 0.5 * (sy + ey))
-    link = jnp.broadcast_to(jnp.asarray(link, jnp.int32), row.shape)
-
-    def listed(table):  # (n_links, n, n, k) -> (..., k): each list one contiguous row
-        return jnp.asarray(table)[link, row, column]
-    return NearSlots(circles=listed(tables.circles), polygons=listed(tables.polygons))
-
-
-def _with_empty_slot(values, fill):
-    """Per-slot data with one empty slot appended (the lists' padding points at it)."""
-    values = jnp.asarray(values)
-    pad = jnp.full((1,) + values.shape[1:], fill, values.dtype)
-    return jnp.concatenate([values, pad], axis=0)
+    n_bins, n_cells = tables.circle_lists.shape[1], tables.circle_lists.shape[-2]
+    angle = jnp.arctan2(ey - sy, ex - sx)  # (-pi, pi]
+    angle = jnp.where(angle < 0, angle + jnp.pi, angle)  # [0, pi]
+    direction = jnp.clip(jnp.floor(jnp.nan_to_num(angle) * (n_bins / jnp.pi)), 0, n_bins - 1)
+    lists = jnp.asarray(link, jnp.int32) * n_bins + direction.astype(jnp.int32)
+    return (lists * n_cells + row) * n_cells + column
 
 
-def gathered(world: WorldArrays, slots: NearSlots) -> WorldArrays:
-    """A world whose slots are the listed ones, per link: each field of shape (k, ..., batch):
-    the slot axis first, the links' shape (...) last, so that the kernels of
-    ``jaxarm.model.world`` broadcast each slot's numbers against its own link."""
-    empty = {"circles": 1e4, "circle_valid": False, "vertices": 1e4, "normals": 0.0,
-             "extent_low": 0.0, "extent_high": 0.0, "edge_valid": False,
-             "polygon_valid": False}
-    batch_ndim = slots.circles.ndim - 1
-    fields = {}
-    for names, index in ((CIRCLE_FIELDS, slots.circles), (POLYGON_FIELDS, slots.polygons)):
-        for name in names:
-            values = _with_empty_slot(getattr(world, name), empty[name])[index]
-            # (..., k, *slot data) -> (k, *slot data, ...): each slot's data gathered whole
-            fields[name] = jnp.moveaxis(values, tuple(range(batch_ndim)),
-                                        tuple(range(-batch_ndim, 0)))
+def block_world(numbers: tuple, names: tuple, index) -> WorldArrays:
+    """The world of one block of listed slots of one kind: ``numbers`` (``NearTables.circles``
+    or ``.polygons``) at rows ``index`` (block * M + list, of the links' shape (...)), each
+    field of shape (block, *slot data, ...) -- the slot axis first, the links' shape last, so that
+    the kernels of ``jaxarm.model.world`` broadcast each slot's numbers against its own link
+    -- and no slots of the other kind."""
+    batch_ndim = jnp.ndim(index)
+    fields = {name: jnp.moveaxis(jnp.asarray(values).at[index].get(mode="promise_in_bounds"),
+                                 tuple(range(batch_ndim)), tuple(range(-batch_ndim, 0)))
+              for name, values in zip(names, numbers)}
+    for name in CIRCLE_FIELDS + POLYGON_FIELDS:
+        if name not in fields:
+            shape = {"circles": (0, 3), "vertices": (0, 1, 2), "normals": (0, 1, 2),
+                     "extent_low": (0, 1), "extent_high": (0, 1), "edge_valid": (0, 1)}
+            fields[name] = jnp.zeros(shape.get(name, (0,)),
+                                     bool if isinstance(_EMPTY[name], bool) else None)
     return WorldArrays(**fields)
 
 
-def over_blocks(world: WorldArrays, slots: NearSlots, value: Callable, combine: Callable,
+def over_blocks(tables: NearTables, cells, value: Callable, combine: Callable,
                 identity: float):
-    """``combine`` of ``value(block)`` over blocks of ``BLOCK`` listed slots, in a scan whose
-    body is the program's one copy of ``value``.
+    """``combine`` of ``value(block)`` over the blocks of slots listed in ``cells``
+    (``near_cells``), in a scan whose body is the program's one copy of ``value``.
 
     Args:
-      world: the packed world.
-      slots: ``local_slots``; circles and polygons are taken in separate blocks (a block holds
-        one kind).
-      value: block world (``gathered``, BLOCK slots of one kind) -> a pytree of arrays of the
-        links' shape (...).
+      tables: the world's ``NearTables``.
+      cells: ``near_cells``, of the links' shape (...).
+      value: block world (``block_world``: a block of slots of one kind) -> a pytree of arrays of
+        the links' shape (...).
       combine: (pytree, pytree) -> pytree, elementwise, associative (min, max, add).
       identity: ``combine``'s identity (0 for add, inf for min), the value of no blocks.
 
     Returns:
       The combined pytree.
     """
-    no_circles = jnp.zeros(slots.circles.shape[:-1] + (0,), jnp.int32)
-    no_polygons = jnp.zeros(slots.polygons.shape[:-1] + (0,), jnp.int32)
+    n_lists = int(np.prod(tables.circle_lists.shape[:-1]))
     result = None
-    for kind, kind_slots in (("circles", slots.circles), ("polygons", slots.polygons)):
-        n_blocks = kind_slots.shape[-1] // BLOCK
-        if not n_blocks or not getattr(world, "circles" if kind == "circles"
-                                       else "vertices").shape[0]:
+    for names, numbers, lists in ((CIRCLE_FIELDS, tables.circles, tables.circle_lists),
+                                  (POLYGON_FIELDS, tables.polygons, tables.polygon_lists)):
+        if not numbers:
             continue
-        blocks = jnp.moveaxis(kind_slots.reshape(kind_slots.shape[:-1] + (n_blocks, BLOCK)),
-                              -2, 0)
 
-        def one_block(block, kind=kind):
-            only = (NearSlots(block, no_polygons) if kind == "circles"
-                    else NearSlots(no_circles, block))
-            return value(gathered(world, only))
+        def one_block(block, names=names, numbers=numbers):
+            return value(block_world(numbers, names, block * n_lists + cells))
 
         if result is None:
             result = jax.tree.map(lambda shape: jnp.full(shape.shape, identity, shape.dtype),
-                                  jax.eval_shape(one_block, blocks[0]))
+                                  jax.eval_shape(one_block, jnp.int32(0)))
+        blocks = jnp.arange(lists.shape[-1] // numbers[0].shape[1], dtype=jnp.int32)
         result, _ = jax.lax.scan(lambda carry, block: (combine(carry, one_block(block)), None),
                                  result, blocks)
     return result

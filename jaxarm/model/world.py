@@ -230,8 +230,8 @@ def leading_slots(values, ndim: int):
 
     Slots lead so that the innermost axis stays the caller's (the samples): elementwise loops
     then vectorise over it instead of over a handful of obstacle slots. Data already of shape
-    (n_slots, ...) (a world gathered per link, ``jaxarm.model.nearby.gathered``) is returned
-    as it is.
+    (n_slots, ...) (a block of listed slots per link, ``jaxarm.model.nearby.block_world``) is
+    returned as it is.
     """
     if values.ndim > 1:
         return values
