@@ -61,9 +61,11 @@ def test_every_obstacle_within_reach_of_a_link_is_listed(rng, kind):
     circles, polygons = shapely_obstacles(problem.world)
     shapes = ([shapely.Point(c).buffer(r, 256) for c, r in circles] + polygons)
     if kind == "circles":
-        n_slots, lists, numbers, own = len(circles), tables.circle_lists, tables.circles, world.circles
+        n_slots, lists, numbers = len(circles), tables.circle_lists, tables.circles
+        own = world.circles
     else:
-        n_slots, lists, numbers, own = len(polygons), tables.polygon_lists, tables.polygons, world.vertices
+        n_slots, lists, numbers = len(polygons), tables.polygon_lists, tables.polygons
+        own = world.vertices
     lists = lists.reshape(-1, lists.shape[-1])
     block = numbers[0].shape[1]
     edges = np.arange(2 * nearby.DIRECTION_BINS) * np.pi / nearby.DIRECTION_BINS
