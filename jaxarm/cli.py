@@ -281,7 +281,7 @@ def _add_study_command(commands) -> None:
                             "it (500)")
     study.add_argument("--pairwise", action="store_true",
                        help="also print every pair's difference in escape rate (95 %% Newcombe "
-                            "interval, Fisher exact p)")
+                            "interval, Fisher exact p) and McNemar's exact p on the paired seeds")
     study.add_argument("--json", type=pathlib.Path, help="write summaries as JSON")
     study.add_argument("--csv", type=pathlib.Path, help="write per-seed records as CSV")
     study.add_argument("--plot", type=pathlib.Path,

@@ -1,4 +1,5 @@
-"""Binomial statistics for escape rates: Wilson intervals, Newcombe differences, Fisher's test.
+"""Binomial statistics for escape rates: Wilson intervals, Newcombe differences, Fisher's test
+for independent samples and McNemar's exact test for paired ones.
 
 Plain Python (no SciPy at run time); ``tests/test_stats.py`` checks every function against
 SciPy on the same counts.
@@ -31,13 +32,17 @@ def wilson_interval(successes: int, trials: int, z: float = Z_95) -> tuple[float
 
 
 class Comparison(NamedTuple):
-    """Two escape rates compared: ``a - b`` with a 95 % interval, and Fisher's p-value."""
+    """Two escape rates compared: ``a - b`` with a 95 % interval, Fisher's p-value (the two
+    samples taken as independent) and McNemar's (the seeds paired)."""
 
     a: str  # label of the first
     b: str  # label of the second
     difference: float  # rate(a) - rate(b)
     interval: tuple[float, float]  # Newcombe's hybrid score interval for the difference
     p_value: float  # two-sided Fisher exact test of equal rates
+    only_a: int  # paired seeds that a escaped and b did not
+    only_b: int  # paired seeds that b escaped and a did not
+    mcnemar_p: float  # two-sided exact McNemar test on those discordant seeds (NaN: none paired)
 
     def difference_text(self) -> str:
         """The difference and its interval in percentage points: ``+12.0% [+5.1%, +18.7%]``."""
@@ -81,6 +86,25 @@ def fisher_exact(successes_a: int, trials_a: int, successes_b: int, trials_b: in
     p = sum(math.exp(log_probability(k)) for k in range(low, high + 1)
             if log_probability(k) <= cutoff)
     return min(1.0, p)
+
+
+def mcnemar_exact(only_a: int, only_b: int) -> float:
+    """Two-sided exact McNemar p-value for paired success/failure outcomes: the binomial test
+    of ``only_a`` successes in ``only_a + only_b`` discordant pairs against a rate of 1/2 (the
+    pairs where both or neither succeeded say nothing about a difference). 1 without
+    discordant pairs.
+
+    Examples:
+      >>> round(mcnemar_exact(9, 2), 4)
+      0.0654
+    """
+    for name, value in (("only_a", only_a), ("only_b", only_b)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise ValueError(f"{name} must be an integer >= 0, got {value!r}")
+    n = only_a + only_b
+    tail = sum(math.exp(_log_choose(n, k) - n * math.log(2.0))
+               for k in range(min(only_a, only_b) + 1))
+    return min(1.0, 2.0 * tail)
 
 
 def _log_choose(n: int, k: int) -> float:

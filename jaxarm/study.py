@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import pathlib
 import sys
 import time
@@ -31,7 +32,8 @@ from jaxarm.optim.restarts import (
     is_compiled,
     run_restarts,
 )
-from jaxarm.stats import Comparison, fisher_exact, newcombe_interval, wilson_interval
+from jaxarm.stats import (Comparison, fisher_exact, mcnemar_exact, newcombe_interval,
+                          wilson_interval)
 
 
 class EvolvingRuns(NamedTuple):
@@ -146,13 +148,20 @@ class Study(NamedTuple):
 
     def compare(self, a: str, b: str) -> Comparison:
         """Escape rate of method ``a`` minus that of ``b``: the difference, its 95 % Newcombe
-        interval and the two-sided Fisher exact p-value (same seeds, counted as independent
-        samples)."""
+        interval and the two-sided Fisher exact p-value (the two counted as independent
+        samples), and McNemar's exact p-value on the seeds they share (paired: the seeds one
+        method escaped and the other did not, ``only_a`` and ``only_b``)."""
         first, second = self.method(a), self.method(b)
         counts = (int(first.escaped.sum()), first.n_restarts, int(second.escaped.sum()),
                   second.n_restarts)
+        _, in_first, in_second = np.intersect1d(first.restart_ids, second.restart_ids,
+                                                return_indices=True)
+        escaped_a, escaped_b = first.escaped[in_first], second.escaped[in_second]
+        only_a, only_b = int(np.sum(escaped_a & ~escaped_b)), int(np.sum(escaped_b & ~escaped_a))
         return Comparison(a=a, b=b, difference=first.escape_rate() - second.escape_rate(),
-                          interval=newcombe_interval(*counts), p_value=fisher_exact(*counts))
+                          interval=newcombe_interval(*counts), p_value=fisher_exact(*counts),
+                          only_a=only_a, only_b=only_b,
+                          mcnemar_p=mcnemar_exact(only_a, only_b) if len(in_first) else math.nan)
 
     def comparisons(self) -> list[Comparison]:
         """Every pair of methods, each later one against each earlier one."""
@@ -183,9 +192,10 @@ class Study(NamedTuple):
                 f"{s['seconds'] - s['compile_seconds']:.1f} | {s['compile_seconds']:.1f} |"
             )
         if pairwise and len(self.methods) > 1:
-            lines += ["", "| comparison | difference in escape rate [95 % CI] | Fisher p |",
-                      "|---|---|---|"]
-            lines += [f"| {c.a} - {c.b} | {c.difference_text()} | {c.p_value:.3g} |"
+            lines += ["", "| comparison | difference in escape rate [95 % CI] | Fisher p | "
+                      "seeds only a / only b escaped | McNemar p |", "|---|---|---|---|---|"]
+            lines += [f"| {c.a} - {c.b} | {c.difference_text()} | {c.p_value:.3g} | "
+                      f"{c.only_a} / {c.only_b} | {c.mcnemar_p:.3g} |"
                       for c in self.comparisons()]
         return "\n".join(lines)
 

@@ -130,6 +130,7 @@ def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
                            "--json", str(tmp_path / "s.json"), "--csv", str(tmp_path / "s.csv"),
                            "--plot", str(tmp_path / "s.png"))
     assert code == 0 and "escape rate" in out and "| A:epsilon - A | " in out
+    assert "| McNemar p |" in out
     assert "| A[social_coeff=2,inertia_end=0.5] | death |" in out  # its comma kept inside
     assert len((tmp_path / "s.csv").read_text().splitlines()) == 13
     assert len(json.loads((tmp_path / "s.json").read_text())["methods"]) == 3

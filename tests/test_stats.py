@@ -44,8 +44,27 @@ def test_wilson_interval_matches_scipy(scipy_stats, successes, trials):
     assert high == pytest.approx(reference.high, abs=1e-12)
 
 
+PAIRED = [(9, 2), (0, 0), (3, 3), (0, 7), (50, 30), (1, 0), (200, 180), (0, 1000), (4, 21)]
+
+
+@pytest.mark.parametrize("only_a, only_b", PAIRED)
+def test_mcnemar_exact_is_scipys_binomial_test_of_the_discordant_pairs(scipy_stats, only_a,
+                                                                       only_b):
+    n = only_a + only_b
+    reference = scipy_stats.binomtest(only_a, n, 0.5).pvalue if n else 1.0
+    assert stats.mcnemar_exact(only_a, only_b) == pytest.approx(reference, rel=1e-9,
+                                                                 abs=1e-300)
+
+
+def test_mcnemar_exact_names_a_bad_count():
+    with pytest.raises(ValueError, match=r"only_b must be an integer >= 0, got -1"):
+        stats.mcnemar_exact(3, -1)
+    with pytest.raises(ValueError, match=r"only_a must be an integer >= 0, got 2.5"):
+        stats.mcnemar_exact(2.5, 1)
+
+
 def test_a_comparison_prints_its_difference_and_interval_in_points():
-    comparison = stats.Comparison("B", "A", 0.12, (0.051, 0.187), 0.001)
+    comparison = stats.Comparison("B", "A", 0.12, (0.051, 0.187), 0.001, 7, 1, 0.07)
     assert comparison.difference_text() == "+12.0% [+5.1%, +18.7%]"
 
 

@@ -37,10 +37,19 @@ def test_compare_gives_the_difference_its_newcombe_interval_and_fishers_p(case2)
     assert comparison.difference == pytest.approx(a.escape_rate() - b.escape_rate())
     assert comparison.interval == stats.newcombe_interval(*counts)
     assert comparison.p_value == stats.fisher_exact(*counts)
+    # paired by seed: the seeds one escaped and the other did not, counted from the CSV's rows
+    rows = result.records()
+    escaped = {(r["method"], r["restart"]): r["escaped"] for r in rows}
+    only_a = sum(escaped[("A:feasibility", i)] and not escaped[("A", i)] for i in range(12))
+    only_b = sum(escaped[("A", i)] and not escaped[("A:feasibility", i)] for i in range(12))
+    assert only_a + only_b > 0  # seeds where the two disagree, for the test to count
+    assert (comparison.only_a, comparison.only_b) == (only_a, only_b)
+    assert comparison.mcnemar_p == stats.mcnemar_exact(only_a, only_b)
     assert [(c.a, c.b) for c in result.comparisons()] == [
         ("A:feasibility", "A"), ("C", "A"), ("C", "A:feasibility")]
     table = result.table(pairwise=True)
     assert f"| A:feasibility - A | {comparison.difference_text()} |" in table
+    assert f"| {only_a} / {only_b} | {comparison.mcnemar_p:.3g} |" in table
     assert table.count("\n| C - ") == 2
     assert "comparison" not in result.table()
     assert len(json.loads(result.to_json())["comparisons"]) == 3

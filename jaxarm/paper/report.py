@@ -755,7 +755,9 @@ def _rules_section(report: _Report, problems: list, n_restarts: int, chunk: int,
         "`[inertia_end=0.4]` lets the inertia fall from 1 to 0.4 instead of 0. "
         "Escape rate is CEC 2006's *feasible rate*; fitness medians are over the restarts that "
         "end feasible. The last column compares each row's escape rate with the death "
-        f"penalty's (difference, 95 % Newcombe interval, Fisher exact p). {evosax_note}", "",
+        "penalty's (difference, 95 % Newcombe interval, Fisher's exact p for independent "
+        "samples and McNemar's exact p on the paired seeds: the rows share their seeds). "
+        f"{evosax_note}", "",
         f"| scenario | rule | escape, {check} check [95 % CI] | median escape iter | median / "
         "best fitness | vs death penalty |",
         "|---|---|---|---|---|---|",
@@ -768,7 +770,8 @@ def _rules_section(report: _Report, problems: list, n_restarts: int, chunk: int,
             versus = "–"
             if method.variant.label != "A":
                 c = result.compare(method.variant.label, "A")
-                versus = f"{c.difference_text()}, p = {c.p_value:.2g}"
+                versus = (f"{c.difference_text()}, Fisher p = {c.p_value:.2g}, "
+                          f"McNemar p = {c.mcnemar_p:.2g}")
             median = "–" if s["fitness_median"] is None else f"{s['fitness_median']:.4f}"
             best = "–" if s["fitness_best"] is None else f"{s['fitness_best']:.4f}"
             iteration = ("–" if s["escape_iter_median"] is None
