@@ -61,10 +61,12 @@ def test_every_obstacle_within_reach_of_a_link_is_listed(rng, kind):
     circles, polygons = shapely_obstacles(problem.world)
     shapes = ([shapely.Point(c).buffer(r, 256) for c, r in circles] + polygons)
     if kind == "circles":
-        n_slots, lists, numbers = len(circles), tables.circle_lists, tables.circles
+        n_slots, lists, rows, numbers = (len(circles), tables.circle_lists, tables.circle_rows,
+                                         tables.circles)
         own = world.circles
     else:
-        n_slots, lists, numbers = len(polygons), tables.polygon_lists, tables.polygons
+        n_slots, lists, rows, numbers = (len(polygons), tables.polygon_lists,
+                                         tables.polygon_rows, tables.polygons)
         own = world.vertices
     lists = lists.reshape(-1, lists.shape[-1])
     block = numbers[0].shape[1]
@@ -83,7 +85,7 @@ def test_every_obstacle_within_reach_of_a_link_is_listed(rng, kind):
                 slots = lists[listed_in[k]]
                 assert index in slots[slots < n_slots], (link, index, k)
                 position = int(np.nonzero(slots == index)[0][0])
-                row = (position // block) * lists.shape[0] + listed_in[k]
+                row = rows[(position // block) * lists.shape[0] + listed_in[k]]
                 np.testing.assert_array_equal(numbers[0][row, position % block],
                                               own[index].astype(numbers[0].dtype))
 

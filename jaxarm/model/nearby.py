@@ -13,9 +13,9 @@ bound stays a lower bound on the true distance and every verdict stays sound. Sm
 keep every slot written out in one program, the kernels of ``jaxarm.model.world`` as they
 were, bit for bit.
 
-Obstacles are data here: each list's slots are stored with their numbers, in blocks, one
-contiguous row per block (a row gathered whole costs far less than its slots gathered one
-by one through an index list), and tested block by block in a ``lax.scan``
+Obstacles are data here: the lists are cut into blocks, each distinct block stored once as
+one contiguous row of its slots' numbers (a row gathered whole costs far less than its slots
+gathered one by one through an index list), and tested block by block in a ``lax.scan``
 (``over_blocks``), so the compiled program does not grow with the number of obstacles, and a
 batch's working set holds one block at a time.
 """
@@ -53,10 +53,12 @@ class NearTables(NamedTuple):
     a bin, as data (a pytree of arrays; ``build`` makes it).
 
     ``circles`` and ``polygons`` hold the listed slots' own numbers: each of the world's fields
-    of that kind (``CIRCLE_FIELDS``, ``POLYGON_FIELDS``), of shape (n_blocks * M, block,
-    *slot data), M = n_links * DIRECTION_BINS * n_cells**2 lists: row b * M + c holds block b
-    of list c (``near_cells``), so that a block of a link's list is one contiguous row,
-    gathered by the list's number alone (``block_world``), with no index list to follow.
+    of that kind (``CIRCLE_FIELDS``, ``POLYGON_FIELDS``), of shape (n_rows, block, *slot data),
+    one row per distinct block of slots; ``circle_rows`` and ``polygon_rows``, of shape
+    (n_blocks * M,), M = n_links * DIRECTION_BINS * n_cells**2 lists, say which row holds
+    block b of list c (``near_cells``) at b * M + c. A block of a link's list is then one
+    contiguous row, read whole (``block_world``), with no index list to follow slot by slot;
+    lists that share a block (most often an empty one) share its row.
     """
 
     origin: np.ndarray  # shape=(2,), cm: the grid's lower-left corner
@@ -67,7 +69,9 @@ class NearTables(NamedTuple):
     # numbers of (in the type JAX computes in, float32 unless x64 is on).
     circle_lists: np.ndarray
     polygon_lists: np.ndarray
+    circle_rows: np.ndarray  # int32: the row of each block of each list (see above)
     circles: tuple  # CIRCLE_FIELDS' listed numbers (see above); () without circle slots
+    polygon_rows: np.ndarray
     polygons: tuple  # POLYGON_FIELDS' listed numbers; () without polygon slots
 
 
@@ -130,8 +134,8 @@ def build(world: WorldArrays, lengths, reach: float) -> NearTables:
         origin=np.array([-arm_reach, -arm_reach]), inverse_cell=np.asarray(1.0 / cell),
         reach=np.asarray(float(reach)), circle_lists=circle_lists,
         polygon_lists=polygon_lists,
-        circles=_listed_numbers(world, CIRCLE_FIELDS, circle_lists, BLOCK),
-        polygons=_listed_numbers(world, POLYGON_FIELDS, polygon_lists, POLYGON_BLOCK))
+        **_listed_numbers(world, "circle", circle_lists, BLOCK),
+        **_listed_numbers(world, "polygon", polygon_lists, POLYGON_BLOCK))
 
 
 def _circle_boxes(world: WorldArrays):
@@ -177,29 +181,29 @@ def _near_lists(centres, low, high, length, width) -> list:
         cells.append(row * n_cells + column)
         slots.append(slot)
     cells, slots = np.concatenate(cells), np.concatenate(slots)
-    mid = np.stack([centres[cells % n_cells], centres[cells // n_cells]], axis=-1)
-    low, high = low[slots], high[slots]
+    # Each pair's box relative to its cell's centre, and the box's gaps along x and y.
+    centre = np.stack([centres[cells % n_cells], centres[cells // n_cells]], axis=-1)
+    low, high = low[slots] - centre, high[slots] - centre  # (pairs, 2)
+    along_x = np.maximum(low[:, 0], -high[:, 0])
+    along_y = np.maximum(low[:, 1], -high[:, 1])
     per_bin = []
     for direction in (np.arange(DIRECTION_BINS) + 0.5) * (np.pi / DIRECTION_BINS):
-        along = np.array([np.cos(direction), np.sin(direction)])
-        gaps = [_projection_gap(mid, low, high, axis, half)
-                for axis, half in ((np.array([1.0, 0.0]), 0.5 * length * abs(along[0])),
-                                   (np.array([0.0, 1.0]), 0.5 * length * abs(along[1])),
-                                   (along, 0.5 * length),
-                                   (np.array([-along[1], along[0]]), 0.0))]
+        cos, sin = np.cos(direction), np.sin(direction)
+        gaps = [along_x - 0.5 * length * abs(cos), along_y - 0.5 * length * abs(sin),
+                _projection_gap(low, high, cos, sin) - 0.5 * length,
+                _projection_gap(low, high, -sin, cos)]
         near = np.max(gaps, axis=0) <= width
         per_bin.append((cells[near], slots[near]))
     return per_bin
 
 
-def _projection_gap(mid, low, high, axis, half):
-    """The gap between the projections on ``axis`` (a unit vector) of segments centred at
-    ``mid`` reaching ``half`` either way along it, and boxes (``low``, ``high``), each of
-    shape (n, 2): a lower bound on their distance (<= 0 where the projections overlap)."""
-    centre = mid @ axis
-    box_low = np.minimum(low * axis, high * axis).sum(axis=-1)
-    box_high = np.maximum(low * axis, high * axis).sum(axis=-1)
-    return np.maximum(box_low - (centre + half), (centre - half) - box_high)
+def _projection_gap(low, high, axis_x, axis_y):
+    """How far boxes (``low``, ``high``, each of shape (n, 2), relative to a point) lie from
+    that point along the unit axis (axis_x, axis_y): the gap between their projections on it
+    (<= 0 where a box's projection covers the point's)."""
+    x_low, x_high = (low[:, 0], high[:, 0]) if axis_x >= 0 else (high[:, 0], low[:, 0])
+    y_low, y_high = (low[:, 1], high[:, 1]) if axis_y >= 0 else (high[:, 1], low[:, 1])
+    return np.maximum(x_low * axis_x + y_low * axis_y, -(x_high * axis_x + y_high * axis_y))
 
 
 def _padded(per_link: list, n_slots: int, block: int) -> np.ndarray:
@@ -226,24 +230,28 @@ _EMPTY = {"circles": 1e4, "circle_valid": False, "vertices": 1e4, "normals": 0.0
           "extent_low": 0.0, "extent_high": 0.0, "edge_valid": False, "polygon_valid": False}
 
 
-def _listed_numbers(world: WorldArrays, names: tuple, lists: np.ndarray, block: int) -> tuple:
-    """The numbers of the listed slots, field by field, in ``NearTables``' layout; () for a
-    world without slots of this kind."""
+def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int) -> dict:
+    """``NearTables``' rows of one kind ("circle" or "polygon"): ``{kind}_rows`` and the
+    numbers of the distinct blocks (``{kind}s``, field by field; () for a world without
+    slots of this kind)."""
+    names = CIRCLE_FIELDS if kind == "circle" else POLYGON_FIELDS
+    n_blocks = lists.shape[-1] // block
+    blocks = np.moveaxis(lists.reshape(-1, n_blocks, block), 1, 0).reshape(-1, block)
     if not getattr(world, names[0]).shape[0]:
-        return ()
-    k = lists.shape[-1]
-    n_blocks = k // block
+        return {f"{kind}_rows": np.zeros(len(blocks), np.int32), f"{kind}s": ()}
+    # Distinct blocks, each block's slots compared as one string of bytes (far faster than
+    # np.unique along an axis).
+    as_bytes = np.ascontiguousarray(blocks).view(np.dtype((np.void, 4 * block))).ravel()
+    _, first, rows = np.unique(as_bytes, return_index=True, return_inverse=True)
+    distinct = blocks[first]
     numbers = []
     for name in names:
         values = np.asarray(getattr(world, name))
         values = values.astype(jax.dtypes.canonicalize_dtype(values.dtype))  # float64 -> 32
         values = np.concatenate([values, np.full((1,) + values.shape[1:], _EMPTY[name],
                                                  values.dtype)])
-        listed = values[lists].reshape((-1, n_blocks, block) + values.shape[1:])
-        # (lists, blocks, block, *data) -> (blocks * lists, block, *data)
-        listed = np.moveaxis(listed, 1, 0)
-        numbers.append(np.ascontiguousarray(listed.reshape((-1,) + listed.shape[2:])))
-    return tuple(numbers)
+        numbers.append(values[distinct])  # (n_rows, block, *data)
+    return {f"{kind}_rows": rows.reshape(-1).astype(np.int32), f"{kind}s": tuple(numbers)}
 
 
 def cell_of(tables: NearTables, mid_x, mid_y):
@@ -274,7 +282,7 @@ def near_cells(tables: NearTables, link, sx, sy, ex, ey):
 
 def block_world(numbers: tuple, names: tuple, index) -> WorldArrays:
     """The world of one block of listed slots of one kind: ``numbers`` (``NearTables.circles``
-    or ``.polygons``) at rows ``index`` (block * M + list, of the links' shape (...)), each
+    or ``.polygons``) at rows ``index`` (of the links' shape (...)), each
     field of shape (block, *slot data, ...) -- the slot axis first, the links' shape last, so that
     the kernels of ``jaxarm.model.world`` broadcast each slot's numbers against its own link
     -- and no slots of the other kind."""
@@ -309,13 +317,15 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: Callable,
     """
     n_lists = int(np.prod(tables.circle_lists.shape[:-1]))
     result = None
-    for names, numbers, lists in ((CIRCLE_FIELDS, tables.circles, tables.circle_lists),
-                                  (POLYGON_FIELDS, tables.polygons, tables.polygon_lists)):
+    for names, numbers, lists, rows in (
+            (CIRCLE_FIELDS, tables.circles, tables.circle_lists, tables.circle_rows),
+            (POLYGON_FIELDS, tables.polygons, tables.polygon_lists, tables.polygon_rows)):
         if not numbers:
             continue
 
-        def one_block(block, names=names, numbers=numbers):
-            return value(block_world(numbers, names, block * n_lists + cells))
+        def one_block(block, names=names, numbers=numbers, rows=rows):
+            row = jnp.asarray(rows).at[block * n_lists + cells].get(mode="promise_in_bounds")
+            return value(block_world(numbers, names, row))
 
         if result is None:
             result = jax.tree.map(lambda shape: jnp.full(shape.shape, identity, shape.dtype),
