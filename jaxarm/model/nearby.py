@@ -66,7 +66,7 @@ class NearTables(NamedTuple):
     reach: np.ndarray  # shape=(), cm: every slot not listed is at least this far from the link
     # The lists as slot indices, shape (n_links, DIRECTION_BINS, n_cells, n_cells, k), int32,
     # padded with the count of slots (no slot): what ``circles`` and ``polygons`` hold the
-    # numbers of (in the type JAX computes in, float32 unless x64 is on).
+    # numbers of, in the type JAX computes in (float32 unless x64 is on).
     circle_lists: np.ndarray
     polygon_lists: np.ndarray
     circle_rows: np.ndarray  # int32: the row of each block of each list (see above)
@@ -106,8 +106,8 @@ def build(world: WorldArrays, lengths, reach: float) -> NearTables:
       reach: cm, > 0: the distance every slot left out of a list keeps from the link.
 
     Returns:
-      ``NearTables``; each list is padded with an empty slot (far away and masked) to a
-      multiple of ``BLOCK``.
+      ``NearTables``; each list is padded with empty slots (far away and masked) to whole
+      blocks of its kind (``BLOCK`` circles, ``POLYGON_BLOCK`` polygons).
     """
     lengths = np.asarray(lengths, dtype=np.float64)
     arm_reach = float(np.sum(lengths))
@@ -282,10 +282,10 @@ def near_cells(tables: NearTables, link, sx, sy, ex, ey):
 
 def block_world(numbers: tuple, names: tuple, index) -> WorldArrays:
     """The world of one block of listed slots of one kind: ``numbers`` (``NearTables.circles``
-    or ``.polygons``) at rows ``index`` (of the links' shape (...)), each
-    field of shape (block, *slot data, ...) -- the slot axis first, the links' shape last, so that
-    the kernels of ``jaxarm.model.world`` broadcast each slot's numbers against its own link
-    -- and no slots of the other kind."""
+    or ``.polygons``) at rows ``index`` (of the links' shape (...)), each field of shape
+    (block, *slot data, ...) -- the slot axis first, the links' shape last, so that the
+    kernels of ``jaxarm.model.world`` broadcast each slot's numbers against its own link --
+    and no slots of the other kind."""
     batch_ndim = jnp.ndim(index)
     fields = {name: jnp.moveaxis(jnp.asarray(values).at[index].get(mode="promise_in_bounds"),
                                  tuple(range(batch_ndim)), tuple(range(-batch_ndim, 0)))
@@ -307,8 +307,8 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: Callable,
     Args:
       tables: the world's ``NearTables``.
       cells: ``near_cells``, of the links' shape (...).
-      value: block world (``block_world``: a block of slots of one kind) -> a pytree of arrays of
-        the links' shape (...).
+      value: block world (``block_world``: a block of slots of one kind) -> a pytree of arrays
+        of the links' shape (...).
       combine: (pytree, pytree) -> pytree, elementwise, associative (min, max, add).
       identity: ``combine``'s identity (0 for add, inf for min), the value of no blocks.
 
