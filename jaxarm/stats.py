@@ -8,6 +8,7 @@ SciPy on the same counts.
 from __future__ import annotations
 
 import math
+import operator
 from typing import NamedTuple
 
 Z_95 = 1.959963984540054
@@ -98,9 +99,16 @@ def mcnemar_exact(only_a: int, only_b: int) -> float:
       >>> round(mcnemar_exact(9, 2), 4)
       0.0654
     """
+    counts = []
     for name, value in (("only_a", only_a), ("only_b", only_b)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        try:
+            count = operator.index(value)  # ints and NumPy integers; not floats
+        except TypeError:
+            count = -1
+        if isinstance(value, bool) or count < 0:
             raise ValueError(f"{name} must be an integer >= 0, got {value!r}")
+        counts.append(count)
+    only_a, only_b = counts
     n = only_a + only_b
     tail = sum(math.exp(_log_choose(n, k) - n * math.log(2.0))
                for k in range(min(only_a, only_b) + 1))

@@ -56,6 +56,12 @@ def test_mcnemar_exact_is_scipys_binomial_test_of_the_discordant_pairs(scipy_sta
                                                                  abs=1e-300)
 
 
+def test_mcnemar_exact_takes_numpy_counts():
+    import numpy as np
+
+    assert stats.mcnemar_exact(np.int64(9), np.int32(2)) == stats.mcnemar_exact(9, 2)
+
+
 def test_mcnemar_exact_names_a_bad_count():
     with pytest.raises(ValueError, match=r"only_b must be an integer >= 0, got -1"):
         stats.mcnemar_exact(3, -1)

@@ -2,6 +2,7 @@
 
 import json
 
+import jax
 import numpy as np
 import pytest
 from sizes import SMALL
@@ -53,6 +54,26 @@ def test_compare_gives_the_difference_its_newcombe_interval_and_fishers_p(case2)
     assert table.count("\n| C - ") == 2
     assert "comparison" not in result.table()
     assert len(json.loads(result.to_json())["comparisons"]) == 3
+
+
+def test_compare_pairs_the_seeds_by_restart_not_by_row(case2):
+    """A method whose rows come in another order (its restart ids with them) is paired seed by
+    seed all the same; one that shares no seed has no McNemar p."""
+    result = study.escape_study(case2, ["A", "A:feasibility"], n_restarts=12, **SMALL)
+    first = result.method("A:feasibility")
+    order = np.random.default_rng(3).permutation(12)
+    shuffled = first._replace(restart_ids=first.restart_ids[order],
+                              outcome=jax.tree.map(lambda a: np.asarray(a)[order],
+                                                   first.outcome))
+    reordered = result._replace(methods=(result.methods[0], shuffled))
+    expected = result.compare("A:feasibility", "A")
+    assert not np.array_equal(shuffled.escaped, first.escaped)  # the rows did move
+    assert reordered.compare("A:feasibility", "A") == expected
+    elsewhere = shuffled._replace(restart_ids=shuffled.restart_ids + 100)
+    unpaired = result._replace(methods=(result.methods[0], elsewhere))
+    comparison = unpaired.compare("A:feasibility", "A")
+    assert (comparison.only_a, comparison.only_b) == (0, 0) and np.isnan(comparison.mcnemar_p)
+    assert comparison.p_value == expected.p_value  # Fisher's needs no pairing
 
 
 class RecordingBar:

@@ -66,11 +66,13 @@ class NearTables(NamedTuple):
     reach: np.ndarray  # shape=(), cm: every slot not listed is at least this far from the link
     # The lists as slot indices, shape (n_links, DIRECTION_BINS, n_cells, n_cells, k), int32,
     # padded with the count of slots (no slot): what ``circles`` and ``polygons`` hold the
-    # numbers of, in the type JAX computes in (float32 unless x64 is on).
+    # numbers of. The checks read their shapes only (jit leaves unused arrays out).
     circle_lists: np.ndarray
     polygon_lists: np.ndarray
     circle_rows: np.ndarray  # int32: the row of each block of each list (see above)
-    circles: tuple  # CIRCLE_FIELDS' listed numbers (see above); () without circle slots
+    # CIRCLE_FIELDS' listed numbers (see above), in the type JAX computes in (float32 unless
+    # x64 is on); () without circle slots.
+    circles: tuple
     polygon_rows: np.ndarray
     polygons: tuple  # POLYGON_FIELDS' listed numbers; () without polygon slots
 
