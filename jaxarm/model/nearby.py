@@ -58,7 +58,7 @@ class NearTables(NamedTuple):
     (n_blocks * M,), M = n_links * DIRECTION_BINS * n_cells**2 lists, say which row holds
     block b of list c (``near_cells``) at b * M + c. A block of a link's list is then one
     contiguous row, read whole (``block_world``), with no index list to follow slot by slot;
-    lists that share a block (most often an empty one) share its row.
+    lists that share a block share its row.
     """
 
     origin: np.ndarray  # shape=(2,), cm: the grid's lower-left corner
@@ -66,7 +66,7 @@ class NearTables(NamedTuple):
     reach: np.ndarray  # shape=(), cm: every slot not listed is at least this far from the link
     # The lists as slot indices, shape (n_links, DIRECTION_BINS, n_cells, n_cells, k), int32,
     # padded with the count of slots (no slot): what ``circles`` and ``polygons`` hold the
-    # numbers of. The checks read their shapes only (jit leaves unused arrays out).
+    # numbers of. The checks read their shapes only.
     circle_lists: np.ndarray
     polygon_lists: np.ndarray
     circle_rows: np.ndarray  # int32: the row of each block of each list (see above)
