@@ -46,6 +46,8 @@ _EXPORTS = {
     "certify": "jaxarm.checks.evaluate",
     "coefficients": "jaxarm.model.path_functions",
     "collides": "jaxarm.checks.evaluate",
+    "collision_witness": "jaxarm.checks.evaluate",
+    "Witness": "jaxarm.checks.witness",
     "fitness": "jaxarm.checks.evaluate",
     "joint_path": "jaxarm.model.path_functions",
     "share_capacities": "jaxarm.model.problem",

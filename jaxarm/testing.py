@@ -27,6 +27,20 @@ def link_segments(problem, x, n_points: int) -> np.ndarray:
     Returns:
       Array of shape (n_paths, n_points, n_joints, 2, 2): (start, end) of each link.
     """
+    return link_segments_at(problem, x, np.broadcast_to(np.linspace(0.0, 1.0, n_points),
+                                                        (len(x), n_points)))
+
+
+def link_segments_at(problem, x, r) -> np.ndarray:
+    """Every link's end points at instants of each path, in float64.
+
+    Args:
+      x: free parameters, shape (n_paths, n_free).
+      r: instants in [0, 1], shape (n_paths, n_r).
+
+    Returns:
+      Array of shape (n_paths, n_r, n_joints, 2, 2): (start, end) of each link.
+    """
     from jaxarm.model.path import basis_coefficients
 
     start, goal = np.asarray(problem.start), np.asarray(problem.goal)
@@ -35,8 +49,8 @@ def link_segments(problem, x, n_points: int) -> np.ndarray:
     polynomial = (np.einsum("pmj,mn->pjn", free, basis[1:])
                   + (goal - start)[:, None] * basis[0])
     polynomial[..., 0] += start
-    r = np.linspace(0.0, 1.0, n_points)
-    theta = np.einsum("pjn,tn->ptj", polynomial, r[:, None] ** np.arange(problem.degree + 1))
+    r = np.asarray(r, np.float64)
+    theta = np.einsum("pjn,ptn->ptj", polynomial, r[..., None] ** np.arange(problem.degree + 1))
     absolute = np.cumsum(theta, axis=-1)
     steps = np.asarray(problem.arm.lengths) * np.stack([np.cos(absolute), np.sin(absolute)], -1
                                                        ).transpose(3, 0, 1, 2)

@@ -22,6 +22,7 @@ from jaxarm._compile.padding import on_padded_rows
 from jaxarm.checks import certified as certified_lib
 from jaxarm.checks import collision as collision_lib
 from jaxarm.checks import joint_limits as limits_lib
+from jaxarm.checks import witness as witness_lib
 from jaxarm.model import path
 from jaxarm.model.problem import Problem, ProblemArrays, ProblemSpec, as_params
 
@@ -193,8 +194,9 @@ def _evaluate_and_certify(spec: ProblemSpec, arrays: ProblemArrays, rows):
     if limits is not None:
         colliding = colliding | limits.witness
         free = free & (limits.excess == 0)
+    none = jnp.full(rows.shape[:1], -1, jnp.int32)  # link and obstacle: ``certify`` finds them
     return evaluation, Certificate(free, colliding, check.clearance,
-                                   check.exhausted & ~colliding)
+                                   check.exhausted & ~colliding, check.witness_r, none, none)
 
 
 def _evaluated(problem: Problem, x) -> Evaluation:
@@ -250,6 +252,12 @@ class Certificate(NamedTuple):
     #   when free (>= margin); the smallest distance found (< margin; negative: penetration
     #   depth) when colliding; the smallest distance bound seen otherwise
     exhausted: jax.Array  # bool: neither, because the check's budget ran out
+    witness_r: jax.Array  # where colliding: the instant of the deepest tested contact (the
+    #   deepest sample inside an obstacle, else the tested time the bisection found closer than
+    #   the margin); NaN otherwise, and on a path that leaves only a joint limit
+    witness_link: jax.Array  # int32: the link (0-based) nearest an obstacle at witness_r; -1
+    witness_obstacle: jax.Array  # int32: that obstacle's index in ``World``'s order (its
+    #   circles, then its boxes, then its polygons); -1
 
 
 def certify(problem: Problem, x) -> Certificate:
@@ -261,6 +269,8 @@ def certify(problem: Problem, x) -> Certificate:
     between (within the tolerance of the margin), or when the budget runs out, neither.
     With ``problem.joint_limits``, ``free`` also needs every joint proved inside its range and
     an angle found outside makes the path ``colliding`` (``clearance`` stays the obstacles').
+    A colliding path's witness says where: the instant, and the link and obstacle nearest each
+    other there by exact distances over the whole world (``jaxarm.checks.witness``).
     The batch is padded to ``padded_size`` paths (copies of its first path), so a few
     compiled programs serve every batch size; no path's verdict depends on the others in its
     batch.
@@ -279,6 +289,37 @@ def certify(problem: Problem, x) -> Certificate:
       (True, False)
     """
     spec = problem.spec._replace(collision="certified")
-    return on_padded_rows(functools.partial(_evaluate_and_certify, spec, problem.arrays),
-                          as_params(problem, x))[1]
+    x = as_params(problem, x)
+    certificate = on_padded_rows(functools.partial(_evaluate_and_certify, spec, problem.arrays),
+                                 x)[1]
+    found = witness_lib.contacts(problem, x, certificate.witness_r)
+    return certificate._replace(witness_link=found.link, witness_obstacle=found.obstacle)
 
+
+def collision_witness(problem: Problem, x) -> witness_lib.Witness:
+    """Where paths collide under the problem's check: the instant of the deepest tested contact
+    (sampled check: the sample deepest inside the margin; certified: ``certify``'s
+    ``witness_r``), and the link and obstacle nearest each other there.
+
+    Args:
+      problem: the problem (its ``collision`` mode decides which check).
+      x: free parameters, shape (..., n_free).
+
+    Returns:
+      ``Witness`` of arrays of shape (...,); NaN / -1 where the check finds no contact (free,
+      or undecided under the certified check). A path that leaves only a joint limit has no
+      contact either.
+
+    Examples:
+      >>> problem = jaxarm.load_scenario("paper-case-2")
+      >>> witness = jaxarm.collision_witness(problem, [0.0, 0.0, 0.0])
+      >>> int(witness.link), int(witness.obstacle), bool(witness.distance < 0)
+      (1, 0, True)
+    """
+    x = as_params(problem, x)
+    if problem.collision == "certified":
+        r = certify(problem, x).witness_r
+    else:
+        r = on_padded_rows(functools.partial(witness_lib.deepest_sample_rows, problem.spec,
+                                             problem.arrays), x)
+    return witness_lib.contacts(problem, x, r)

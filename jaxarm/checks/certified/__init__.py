@@ -76,6 +76,9 @@ class CertifiedCheck(NamedTuple):
     clearance: jax.Array  # cm: see ``Certificate``
     exhausted: jax.Array  # bool: the budget ran out before a verdict
     pieces: jax.Array  # int32: pieces of windows the bisection tested (0: none needed)
+    witness_r: jax.Array  # the instant of the deepest tested contact where colliding, else NaN
+    #   (the deepest sample, or the centre of the piece the bisection found closer than the
+    #   margin: the only tested time that was)
 
 
 def search_spare(lengths):
@@ -173,6 +176,8 @@ def check(spec: ProblemSpec, arrays: ProblemArrays, x, prove=None, free_only=Non
     proved = jnp.minimum(-windows.worst_passed, jnp.where(needs_work, out.proved, jnp.inf))
     seen = jnp.where(decided, jnp.minimum(nearest, out.nearest), nearest)
     clearance = jnp.where(free, proof_margin + proved, seen)
+    witness_r = jnp.where(sample_witness, closest.astype(dtype) * step,
+                          jnp.where(decided & out.witness, out.witness_r, jnp.nan))
     return CertifiedCheck(violation=violation, free=free, colliding=colliding,
                           clearance=clearance, exhausted=exhausted,
-                          pieces=jnp.where(needs_work, out.tested, 0))
+                          pieces=jnp.where(needs_work, out.tested, 0), witness_r=witness_r)

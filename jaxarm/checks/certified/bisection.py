@@ -156,6 +156,7 @@ class Verdict(NamedTuple):
     nearest: jax.Array  # smallest distance to an obstacle at a tested centre (cm)
     proved: jax.Array  # smallest -shortfall of a free piece (cm; + margin bounds the clearance)
     violation: jax.Array  # (shortfall + tol) * width summed over the pieces that ended open
+    witness_r: jax.Array  # the witness piece's centre (r), NaN without one
 
     @property
     def witness(self) -> jax.Array:  # bool: a piece centre closer than the margin
@@ -188,7 +189,8 @@ class _Lanes(NamedTuple):
 
 def _empty_verdict(shape, dtype) -> Verdict:
     return Verdict(flags=jnp.zeros(shape, jnp.int32), nearest=jnp.full(shape, jnp.inf, dtype),
-                   proved=jnp.full(shape, jnp.inf, dtype), violation=jnp.zeros(shape, dtype))
+                   proved=jnp.full(shape, jnp.inf, dtype), violation=jnp.zeros(shape, dtype),
+                   witness_r=jnp.full(shape, jnp.nan, dtype))
 
 
 def _refill(lanes: _Lanes, next_item, work: Work, x):
@@ -226,7 +228,7 @@ class _Outcome(NamedTuple):
     split: jax.Array  # to be split
 
 
-def _piece_verdict(lanes: _Lanes, test: _PieceTest, n_samples: int, tol, margin,
+def _piece_verdict(lanes: _Lanes, test: _PieceTest, n_samples: int, step, tol, margin,
                    proof_margin, budget: int) -> tuple[_Outcome, Verdict]:
     """How each lane's piece ends (module docstring), and the lanes' verdicts with it."""
     piece, verdict = lanes.piece, lanes.verdict
@@ -247,12 +249,16 @@ def _piece_verdict(lanes: _Lanes, test: _PieceTest, n_samples: int, tol, margin,
     split &= ~exhausted
     found = (witness.astype(jnp.int32) | undecided.astype(jnp.int32) << 1
              | exhausted.astype(jnp.int32) << 2)
+    centre = (piece.sample.astype(radius.dtype) * step  # r at the centre (``_Piece``)
+              + (2 * piece.offset + 1 - jnp.left_shift(1, piece.level)).astype(radius.dtype)
+              * radius)
     verdict = Verdict(
         flags=(verdict.flags | found) + (tested.astype(jnp.int32) << 3),
         nearest=jnp.minimum(verdict.nearest, jnp.where(tested, nearest, jnp.inf)),
         proved=jnp.minimum(verdict.proved, jnp.where(tested & free, -shortfall, jnp.inf)),
         violation=verdict.violation + jnp.where(witness | undecided,
-                                                (shortfall + tol) * (2 * radius), 0.0))
+                                                (shortfall + tol) * (2 * radius), 0.0),
+        witness_r=jnp.where(witness, centre, verdict.witness_r))
     return _Outcome(witness=witness, undecided=undecided, exhausted=exhausted,
                     split=split), verdict
 
@@ -304,7 +310,8 @@ def _test_and_advance(state, motion: Motion, work: Work, tables, step, tol, marg
     piece = lanes.piece
     test = _test_pieces(motion._replace(x=lanes.x), piece, tables, step, proof_margin,
                         lanes.active.any())
-    ended, verdict = _piece_verdict(lanes, test, n_samples, tol, margin, proof_margin, budget)
+    ended, verdict = _piece_verdict(lanes, test, n_samples, step, tol, margin, proof_margin,
+                                    budget)
     split = ended.split
     descend, descend_pending = _descend(piece, lanes.pending, test, tol, proof_margin)
     climb, climb_pending = _climb(piece, lanes.pending)

@@ -1,0 +1,142 @@
+"""Where a path collides: the instant of its deepest tested contact, the link and the obstacle.
+
+The certified check finds its instant itself (``certified.CertifiedCheck.witness_r``); the
+sampled check's is its deepest sample (``deepest_sample_rows``). The link and the obstacle are
+those nearest each other at that instant (``contacts``): every link against every obstacle
+slot of the whole world, exact distances, so the pair named is one a user can check by hand.
+Obstacles are numbered in ``World``'s order: its circles, then its boxes, then its polygons.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm._compile.jit import jit
+from jaxarm._compile.padding import on_padded_rows
+from jaxarm.checks import collision as collision_lib
+from jaxarm.model import path
+from jaxarm.model import world as world_lib
+from jaxarm.model.arm import link_endpoints
+from jaxarm.model.problem import Problem, ProblemArrays, ProblemSpec, as_params
+
+# Postures whose link-obstacle distances are computed at once: memory stays bounded by this
+# times the links times the obstacle slots, whatever the batch.
+POSTURES_AT_ONCE = 64
+
+
+class Witness(NamedTuple):
+    """Where paths collide, each field of shape (...,); NaN / -1 where a path does not."""
+
+    r: jax.Array  # the instant of the deepest tested contact
+    link: jax.Array  # int32: the link (0-based) nearest an obstacle there
+    obstacle: jax.Array  # int32: that obstacle's index in ``World``'s order
+    distance: jax.Array  # cm: their distance there (< margin; negative: penetration depth)
+
+
+def link_distances(lengths, world, theta):
+    """Every link's exact distance to its nearest obstacle at postures, and which slot that is.
+
+    Args:
+      lengths: shape (n_joints,).
+      world: ``WorldArrays`` (its near tables, if any, are not read: every slot is).
+      theta: postures, shape (P, n_joints).
+
+    Returns:
+      ``(distance, slot)``, each of shape (P, n_joints): cm (+inf and slot -1 in a world
+      without obstacles), int32.
+    """
+    world = world._replace(near=None)
+    valid = jnp.concatenate([world.circle_valid, world.polygon_valid])
+    if valid.shape[0] == 0:
+        shape = theta.shape
+        return jnp.full(shape, jnp.inf, theta.dtype), jnp.full(shape, -1, jnp.int32)
+    circles = jnp.asarray(world.circles, theta.dtype)
+
+    def one(angles):  # the obstacles as an array axis: compiled once whatever their number
+        separation = jnp.stack([jnp.concatenate([
+            world_lib.point_segment_distance(circles[:, 0], circles[:, 1], *link)
+            - circles[:, 2], world_lib.polygon_separation_xy(*link, world, vertex_axis=True)])
+            for link in link_endpoints(lengths, list(angles))])
+        separation = jnp.where(valid[None], separation, jnp.inf)
+        return separation.min(axis=1), jnp.argmin(separation, axis=1).astype(jnp.int32)
+
+    return jax.lax.map(one, theta, batch_size=POSTURES_AT_ONCE)
+
+
+@functools.partial(jit, static_argnums=0, storable=True)
+def _contact_rows(degree: int, arrays: ProblemArrays, rows_and_r):
+    """``contacts`` of rows (B, n_free + 1): the free parameters, then r."""
+    rows, r = rows_and_r[:, :-1], rows_and_r[:, -1]
+    basis = path.basis_values(degree, jnp.nan_to_num(r)[:, None], 0)[:, 0]  # (B, degree - 4)
+    theta = jnp.stack(path.joint_angle_list(arrays.start, arrays.goal, rows, basis,
+                                            per_path=True), axis=-1)
+    distance, slot = link_distances(arrays.lengths, arrays.world, theta)
+    link = jnp.argmin(distance, axis=1).astype(jnp.int32)
+    nearest = jnp.take_along_axis(distance, link[:, None], axis=1)[:, 0]
+    slot = jnp.take_along_axis(slot, link[:, None], axis=1)[:, 0]
+    missing = jnp.isnan(r) | (slot < 0)
+    return (jnp.where(missing, -1, link), jnp.where(missing, -1, slot),
+            jnp.where(missing, jnp.nan, nearest))
+
+
+def contacts(problem: Problem, x, r) -> Witness:
+    """The link and obstacle nearest each other on paths ``x`` (..., n_free) at instants ``r``
+    (...,; NaN: none, then -1 and NaN), as a ``Witness``. Given on the host, only the paths
+    with an instant are computed."""
+    x = as_params(problem, x)
+    kernel = functools.partial(_contact_rows, problem.degree, problem.arrays)
+    if isinstance(x, jax.core.Tracer) or isinstance(r, jax.core.Tracer):
+        r = jnp.broadcast_to(jnp.asarray(r, x.dtype), x.shape[:-1])
+        link, slot, distance = on_padded_rows(kernel, jnp.concatenate([x, r[..., None]], -1))
+        return Witness(r, link, obstacle_index(problem, slot, jnp), distance)
+    r = np.broadcast_to(np.asarray(r, x.dtype), x.shape[:-1]).reshape(-1)
+    rows = x.reshape((r.shape[0], x.shape[-1]))
+    link, slot = np.full(r.shape, -1, np.int32), np.full(r.shape, -1, np.int32)
+    distance = np.full(r.shape, np.nan, x.dtype)
+    hit = np.flatnonzero(~np.isnan(r))
+    if hit.size:
+        found = on_padded_rows(kernel, np.concatenate([rows[hit], r[hit, None]], axis=1))
+        link[hit], slot[hit], distance[hit] = (np.asarray(a) for a in found)
+    shaped = lambda a: jax.device_put(a.reshape(x.shape[:-1]))  # noqa: E731
+    return Witness(shaped(r), shaped(link), shaped(obstacle_index(problem, slot, np)),
+                   shaped(distance))
+
+
+def obstacle_index(problem: Problem, slot, xp=np):
+    """Slots of ``problem.arrays.world`` (ints; -1: none) as the obstacles' indices in
+    ``World``'s order (circle slots come first, then the boxes' and polygons' slots), in
+    NumPy or ``xp=jax.numpy``."""
+    n_circle_slots = problem.capacities[0]
+    n_circles = len(problem.world.circles)
+    return xp.where(slot < 0, -1, xp.where(slot < n_circle_slots, slot,
+                                           slot - n_circle_slots + n_circles)).astype(np.int32)
+
+
+def deepest_sample_fold(lengths, world, x, margin, *, exact: bool) -> path.SampleFold:
+    """The sampled check's deepest sample as a fold: ``(depth, index)`` of shape (B,) each, the
+    largest ``collision.posture_margin_depth`` over the samples (0: none collides) and the
+    first sample where it is reached."""
+    def add_sample(carry, sample):
+        deepest, index = carry
+        depth = collision_lib.posture_margin_depth(lengths, world, sample.derivatives[0],
+                                                   margin, exact=exact)
+        return jnp.maximum(deepest, depth), jnp.where(depth > deepest, sample.index, index)
+
+    return path.SampleFold(
+        init=(jnp.zeros(x.shape[:-1], x.dtype), jnp.zeros(x.shape[:-1], jnp.int32)),
+        step=add_sample, finish=lambda carry: carry, max_order=0)
+
+
+@functools.partial(jit, static_argnums=0, storable=True)
+def deepest_sample_rows(spec: ProblemSpec, arrays: ProblemArrays, rows):
+    """The r of each path's deepest sample under the sampled check, NaN where none collides."""
+    depth, index = path.run_fold(
+        deepest_sample_fold(arrays.lengths, arrays.world, rows, arrays.margin,
+                            exact=spec.with_margin),
+        arrays.start, arrays.goal, rows, spec.degree, spec.n_samples)
+    return jnp.where(depth > 0, index.astype(rows.dtype) / (spec.n_samples - 1), jnp.nan)

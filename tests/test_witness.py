@@ -1,0 +1,99 @@
+"""Where a path collides (``jaxarm.certify``'s witness, ``jaxarm.collision_witness``) against an
+independent oracle: shapely distances at the witness instant, float64 kinematics."""
+
+import numpy as np
+import pytest
+import shapely
+
+import jaxarm
+from jaxarm.testing import link_segments_at, shapely_obstacles
+
+# cm: float32 positions of an arm of 80 cm reach, and the float32 instant they are taken at.
+TOLERANCE = 2e-3
+
+
+def oracle_distances(problem, x, r) -> np.ndarray:
+    """Shapely's distance (>= 0; 0 where they meet) of every link to every obstacle in
+    ``World``'s order at each path's instant; shape (n_paths, n_joints, n_obstacles)."""
+    segments = link_segments_at(problem, x, np.asarray(r, np.float64)[:, None])[:, 0]
+    lines = shapely.linestrings(segments.reshape(-1, 2, 2))
+    circles, polygons = shapely_obstacles(problem.world)
+    columns = [np.maximum(shapely.distance(lines, center) - radius, 0.0)
+               for center, radius in circles]
+    columns += [shapely.distance(lines, polygon) for polygon in polygons]
+    return np.stack(columns, axis=-1).reshape(len(x), problem.n_joints, -1)
+
+
+def assert_witnesses_hold(problem, x, witness, colliding):
+    """Every colliding path names an instant, a link and an obstacle where the oracle finds
+    that link within the margin of that obstacle, and no pair nearer; the others name none."""
+    r, link, obstacle = (np.asarray(a) for a in witness)
+    assert np.all(np.isnan(r[~colliding])) and np.all(link[~colliding] == -1)
+    assert np.all(obstacle[~colliding] == -1)
+    rows = np.nonzero(colliding)[0]
+    assert rows.size
+    assert np.all((r[rows] >= 0) & (r[rows] <= 1))
+    assert np.all((link[rows] >= 0) & (link[rows] < problem.n_joints))
+    assert np.all((obstacle[rows] >= 0) & (obstacle[rows] < problem.world.n_obstacles))
+    distances = oracle_distances(problem, x[rows], r[rows])
+    named = distances[np.arange(rows.size), link[rows], obstacle[rows]]
+    assert np.all(named <= problem.margin + TOLERANCE), named
+    assert np.all(named <= distances.min(axis=(1, 2)) + TOLERANCE)
+
+
+def random_paths(rng, problem, n_paths=64, spread=60.0):
+    return rng.uniform(-spread, spread, (n_paths, problem.n_free)).astype(np.float32)
+
+
+@pytest.mark.parametrize("scene, margin", [
+    pytest.param("mixed-clutter", 0.0, marks=pytest.mark.slow), ("mixed-clutter", 1.5),
+    pytest.param("polygon-field", 0.0, marks=pytest.mark.slow),
+    pytest.param("clutter-100", 0.0, marks=pytest.mark.slow)])
+def test_certify_names_where_each_colliding_path_collides(rng, scene, margin):
+    problem = jaxarm.load_scenario(scene)
+    problem = problem.replace(margin=margin) if margin else problem
+    x = random_paths(rng, problem)
+    certificate = jaxarm.certify(problem, x)
+    colliding = np.asarray(certificate.colliding)
+    assert_witnesses_hold(problem, x, (certificate.witness_r, certificate.witness_link,
+                                       certificate.witness_obstacle), colliding)
+
+
+def test_a_contact_between_samples_is_found_by_the_bisection(rng):
+    """Few samples: paths the samples call free that collide between them get a witness at a
+    time that is no sample, where the oracle finds the contact."""
+    problem = jaxarm.load_scenario("thin-wall").replace(n_samples=11)
+    x = random_paths(rng, problem, 256)
+    certificate = jaxarm.certify(problem, x)
+    sampled = np.asarray(jaxarm.violation(problem.replace(collision="sampled"), x))
+    between = np.asarray(certificate.colliding) & (sampled == 0)
+    assert between.sum() >= 3
+    r = np.asarray(certificate.witness_r)[between]
+    assert np.all(np.abs(r * 10 - np.round(r * 10)) > 1e-4)  # not one of the 11 samples
+    witness = tuple(np.asarray(a)[between] for a in (certificate.witness_r,
+                                                     certificate.witness_link,
+                                                     certificate.witness_obstacle))
+    assert_witnesses_hold(problem, x[between], witness, np.ones(between.sum(), bool))
+
+
+@pytest.mark.parametrize("margin", [0.0, pytest.param(1.5, marks=pytest.mark.slow)])
+def test_the_sampled_witness_is_the_deepest_sample(rng, margin):
+    problem = jaxarm.load_scenario("mixed-clutter").replace(collision="sampled", margin=margin)
+    x = random_paths(rng, problem)
+    witness = jaxarm.collision_witness(problem, x)
+    colliding = np.asarray(jaxarm.collides(problem, x))
+    assert_witnesses_hold(problem, x, witness[:3], colliding)
+    r = np.asarray(witness.r)[colliding]
+    steps = r * (problem.n_samples - 1)
+    np.testing.assert_allclose(steps, np.round(steps), atol=1e-3)  # a sample
+    assert np.all(np.asarray(witness.distance)[colliding] < margin)
+
+
+def test_free_paths_have_no_witness_and_batches_keep_their_shape(case2):
+    x = np.array([[66.7388, -28.1028, -9.8855], [0.0, 0.0, 0.0]])
+    certificate = jaxarm.certify(case2, np.broadcast_to(x, (2, 2, 3)))
+    assert certificate.witness_r.shape == certificate.witness_link.shape == (2, 2)
+    assert np.isnan(np.asarray(certificate.witness_r)[:, 0]).all()
+    assert (np.asarray(certificate.witness_obstacle)[:, 1] == 0).all()
+    witness = jaxarm.collision_witness(case2, x[1])
+    assert witness.r.shape == () and int(witness.link) == 1 and float(witness.distance) < 0
