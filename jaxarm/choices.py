@@ -38,6 +38,10 @@ PSO_METHODS = PRESET_NAMES + tuple(name + suffix for suffix in TOPOLOGY_SUFFIXES
 DEFAULT_METHODS = ("A-ring[inertia_end=0.4]", "A")
 DEFAULT_CONSTRAINT = "feasibility"
 DEFAULT_RESTARTS = 8  # per method
+# Seconds the default search goes on while nothing is certified free (``jaxarm.escalation``):
+# on 2 CPU cores, compiling included, time for the seeded higher degrees that find the paths
+# degree 6 misses, and short enough to wait for at a terminal.
+DEFAULT_TIME_LIMIT = 120.0
 # What one compiled search call holds: restarts x particles paths evaluated together (each with
 # its check's working arrays), and restarts x (iterations + 1) float32 values of history. The
 # bounds are at least twice what benchmarks/escape_bench.py runs at once on a GPU (100,000

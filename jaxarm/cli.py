@@ -27,6 +27,7 @@ from jaxarm.choices import (
     DEFAULT_CONSTRAINT,
     DEFAULT_METHODS,
     DEFAULT_RESTARTS,
+    DEFAULT_TIME_LIMIT,
     LIMIT_UNITS,
     MAX_DEGREE,
     MIN_DEGREE,
@@ -70,6 +71,16 @@ def _at_least(minimum: int):
 
 
 _positive = _at_least(1)
+
+
+def _positive_seconds(text: str) -> float:
+    value = float(text)
+    if not value > 0:  # NaN too
+        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text}")
+    return value
+
+
+_positive_seconds.__name__ = "seconds"
 
 
 def _degrees(text: str) -> tuple[int, ...]:
@@ -189,6 +200,16 @@ def _add_solve_command(commands) -> None:
     solve.add_argument("--restarts", type=_positive,
                        help=f"independent swarms ({DEFAULT_RESTARTS} per default method, "
                             f"1 with a named one)")
+    solve.add_argument("--time-limit", type=_positive_seconds, metavar="S",
+                       help=f"seconds the search may go on while no path is certified free: "
+                            f"more restarts, then higher degrees seeded with the best paths so "
+                            f"far, one line per stage on stderr (default: "
+                            f"{DEFAULT_TIME_LIMIT:g} with the default method; a named method "
+                            f"runs once unless given one)")
+    solve.add_argument("--improve", action="store_true",
+                       help="go on after a certified path is found, until the time limit, "
+                            "keeping the fittest (default: stop at the first stage that "
+                            "certifies one)")
     solve.add_argument("--refine", choices=("best", "all"),
                        help="polish with gradient steps after PSO: the best restart, or every "
                             "feasible one (default: no refinement)")
@@ -490,15 +511,20 @@ def _solve(args) -> None:
     limits = _timing_limits(args, problem)
     from jaxarm import plot
     from jaxarm.io.runs import run_record
+    from jaxarm.io.scenario_files import obstacle_names
     from jaxarm.search import solve
 
     settings = dict(n_particles=args.particles, n_iters=args.iters, n_restarts=args.restarts,
                     seed=args.seed, constraint=args.constraint,
-                    refine={None: False, "best": True, "all": "all"}[args.refine])
-    result = solve(problem, args.method, **settings)
+                    refine={None: False, "best": True, "all": "all"}[args.refine],
+                    time_limit=args.time_limit, improve=args.improve)
+    progress = False if args.quiet else (
+        lambda stage: print(f"jaxarm: {stage.line()}", file=sys.stderr, flush=True))
+    result = solve(problem, args.method, progress=progress, **settings)
     print(f"{problem.name}: {result.n_restarts} restart(s) x {args.particles} particles x "
           f"{args.iters} iterations")
-    print(result.summary(flags=True))
+    names = obstacle_names(args.scenario) if result.witness is not None else None
+    print(result.summary(flags=True, obstacle_names=names))
     if args.json:  # solve(problem, method, **settings) repeats it (method null: the default)
         record = json.dumps(run_record(problem, args.method, settings, result), indent=2,
                             allow_nan=False)

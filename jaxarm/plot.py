@@ -1,8 +1,9 @@
 """Figures (matplotlib, headless-safe: no pyplot, every function returns a ``Figure``).
 
 - ``plot_motion``: the arm among obstacles at several instants, with the end-effector trace
-  (paper Figs. 7a and 11);
+  (paper Figs. 7a and 11), and where a colliding path collides;
 - ``plot_joint_angles``: theta_k(r) (paper Fig. 7b);
+- ``plot_clearance``: each link's distance to the nearest obstacle against r, with the margin;
 - ``plot_convergence``: global-best fitness against iteration for many restarts, escapes
   marked (paper Fig. 12);
 - ``plot_escape_rates`` and ``plot_escape_curves``: a study's escape rates with 95 % intervals
@@ -25,7 +26,8 @@ from matplotlib.figure import Figure
 
 from jaxarm._compile.jit import jit
 from jaxarm._validate import positive_int
-from jaxarm.checks.evaluate import fitness
+from jaxarm.checks.evaluate import collision_witness, fitness
+from jaxarm.checks.witness import clearance_along
 from jaxarm.model.arm import joint_positions
 from jaxarm.model.path_functions import joint_path
 from jaxarm.model.problem import Problem
@@ -102,10 +104,16 @@ def _show_workspace(ax, problem: Problem) -> None:
 
 
 def plot_motion(problem: Problem, x, n_postures: int = 9, ax=None, title: str | None = None):
-    """The arm at ``n_postures`` instants of the path ``x`` (shape (n_free,)) among obstacles."""
+    """The arm at ``n_postures`` instants of the path ``x`` (shape (n_free,)) among obstacles.
+
+    A path that collides under the problem's check is drawn with where: the arm at the
+    witness instant in red, the obstacle it hits outlined in red, and crosses on the
+    end-effector's trace at the instants some link is inside an obstacle (or its margin).
+    """
     figure, ax = _axes(ax)
     draw_world(ax, problem.world)
-    trace = _positions(problem, x, np.linspace(0.0, 1.0, 201))[:, -1]
+    r = np.linspace(0.0, 1.0, 201)
+    trace = _positions(problem, x, r)[:, -1]
     postures = _positions(problem, x, np.linspace(0.0, 1.0, n_postures))
     colors = [(0.15, 0.35 + 0.5 * t, 0.85 - 0.6 * t) for t in np.linspace(0, 1, n_postures)]
     for index, (posture, color) in enumerate(zip(postures, colors)):
@@ -115,10 +123,70 @@ def plot_motion(problem: Problem, x, n_postures: int = 9, ax=None, title: str | 
                 ms=3, alpha=1.0 if ends else 0.6, zorder=3, label=label)
     ax.plot(trace[:, 0], trace[:, 1], "--", color="#d62728", lw=1.2, label="end-effector",
             zorder=2)
+    _mark_collision(ax, problem, x, r, trace)
     ax.plot(0, 0, "ks", ms=7, zorder=4, label="base")
     _show_workspace(ax, problem)
     ax.legend(loc="best", fontsize=8)
     ax.set_title(title or f"{problem.name}: motion")
+    return figure
+
+
+def _mark_collision(ax, problem: Problem, x, r, trace) -> None:
+    """Where the path collides (``plot_motion``): crosses at the instants ``r`` where exact
+    distances put a link inside an obstacle or its margin, and, if the problem's check finds
+    the path colliding, its witness. A path clear at every instant costs no check."""
+    distance, _ = clearance_along(problem, _one_path(problem, x), r)
+    inside = distance.min(axis=1) < problem.margin
+    if not inside.any():
+        return
+    ax.plot(trace[inside, 0], trace[inside, 1], "x", color="#d62728", ms=5, zorder=4,
+            label="in collision")
+    witness = collision_witness(problem, _one_path(problem, x))
+    if int(witness.obstacle) < 0:
+        return
+    posture = _positions(problem, x, np.array([float(witness.r)]))[0]
+    ax.plot(posture[:, 0], posture[:, 1], "-", color="#d62728", lw=2.6, zorder=5,
+            label=f"deepest contact, r = {float(witness.r):.3g}")
+    ax.add_patch(_obstacle_patch(problem.world, int(witness.obstacle), facecolor="none",
+                                 edgecolor="#d62728", linewidth=2.2, zorder=5))
+
+
+def _obstacle_patch(world, index: int, **style):
+    """Obstacle ``index`` (``World``'s order) as a matplotlib patch."""
+    if index < len(world.circles):
+        x, y, radius = world.circles[index]
+        return patches.Circle((x, y), radius, **style)
+    return patches.Polygon(world.polygon_vertices()[index - len(world.circles)], closed=True,
+                           **style)
+
+
+def plot_clearance(problem: Problem, x, n_points: int = 401, ax=None,
+                   title: str | None = None):
+    """Each link's exact distance to its nearest obstacle along the path ``x`` (shape
+    (n_free,)) against r, with the margin (and 0) dashed: where a line dips below, that link
+    collides; the witness instant is marked when the problem's check finds one."""
+    n_points = positive_int("n_points", n_points, minimum=2)
+    figure, ax = _axes(ax, (5.5, 3.5))
+    r = np.linspace(0.0, 1.0, n_points)
+    distance, _ = clearance_along(problem, _one_path(problem, x), r)
+    for link in range(problem.n_joints):
+        ax.plot(r, distance[:, link], lw=1.2, label=f"link {link + 1}")
+    ax.axhline(0.0, color="black", lw=0.8)
+    if problem.margin:
+        ax.axhline(problem.margin, color="#d62728", ls="--", lw=1.0,
+                   label=f"margin {problem.margin:g} cm")
+    witness = collision_witness(problem, _one_path(problem, x))
+    if int(witness.obstacle) >= 0:
+        ax.plot(float(witness.r), float(witness.distance), "x", color="#d62728", ms=9, mew=2,
+                label=f"witness: link {int(witness.link) + 1}", zorder=4)
+    finite = distance[np.isfinite(distance)]
+    if finite.size:  # the nearest few tens of cm: far obstacles do not squeeze the plot
+        top = max(problem.margin, 0.0) + max(5.0, float(np.percentile(finite, 50)))
+        ax.set_ylim(min(float(finite.min()), 0.0) - 0.5, top)
+    ax.set_xlabel("r = t / T")
+    ax.set_ylabel("distance to nearest obstacle (cm)")
+    ax.legend(fontsize=8, loc="best")
+    ax.set_title(title or f"{problem.name}: clearance by link")
     return figure
 
 

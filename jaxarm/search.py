@@ -3,21 +3,24 @@
 from __future__ import annotations
 
 import json
+import math
 import pathlib
 import time
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import jax.numpy as jnp
 import numpy as np
 
 from jaxarm._validate import check_search, positive_int
-from jaxarm.checks.evaluate import certify
-from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS, MAX_DEGREE
+from jaxarm.checks.evaluate import certify, collision_witness
+from jaxarm.choices import (DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS,
+                            DEFAULT_TIME_LIMIT, MAX_DEGREE)
 from jaxarm.io.files import text_writer, write_or_return
 from jaxarm.model.problem import Problem
 from jaxarm.optim import evosax_adapter, pso
 from jaxarm.optim.methods import parse_method
-from jaxarm.optim.restarts import N_ITERS, N_PARTICLES, RestartOutcome, run_restarts
+from jaxarm.escalation import Stage, escalate
+from jaxarm.optim.restarts import N_ITERS, N_PARTICLES, RestartOutcome
 
 
 def exact_text(x) -> str:
@@ -35,10 +38,11 @@ def coefficient_label(degree: int) -> str:
     return "a6" if degree == 6 else f"a6..a{degree}"
 
 
-def _nothing_escaped(result: Result, flags: bool) -> str:
-    """The summary's line when no restart found a collision-free path: what ran, and what to
-    try, in the words of the interface in use (``flags``: the command line's; else Python's
-    keywords). A higher degree is suggested only where the package allows one."""
+def _nothing_escaped(result: Result, flags: bool, obstacle_names: dict | None) -> str:
+    """The summary's line when no restart found a collision-free path: what ran, where the
+    best path collides, and what to try, in the words of the interface in use (``flags``: the
+    command line's; else Python's keywords), never a degree already tried. ``obstacle_names``
+    renames ``World``'s names (``"boxes[0]"``) as a scenario file gives them."""
     restarts = "--restarts N" if flags else "n_restarts=N"
     tries = [f"more restarts ({restarts})"]
     if result.constraint != "feasibility":  # named with the method, which takes any rule
@@ -49,15 +53,50 @@ def _nothing_escaped(result: Result, flags: bool) -> str:
         else:
             tries.append(f'feasibility rules (method "{result.method}:feasibility")' if named
                          else 'feasibility rules (constraint="feasibility")')
-    higher = min(result.degree + 2, MAX_DEGREE)
-    if higher > result.degree:
+    degrees = sorted({stage.degree for stage in result.stages} | {result.degree})
+    if result.time_limit is not None and result.stages and result.stages[-1].time_ran_out:
+        longer = f"{2 * result.time_limit:g}"
+        tries.insert(0, f"a longer time limit (--time-limit {longer})" if flags
+                     else f"a longer time limit (time_limit={longer})")
+    higher = min(degrees[-1] + 2, MAX_DEGREE)
+    if higher > degrees[-1]:
         tries.append(f"a higher degree (--degree {higher})" if flags
                      else f"a higher degree (problem.replace(degree={higher}))")
-    return (f"HINT     none of {result.n_restarts} restart(s) of {result.method} under "
-            f"{result.constraint} rules (degree {result.degree}) found a collision-free path: "
+    ran = (f"{result.n_restarts} restart(s) of {result.method} under {result.constraint} rules "
+           f"(degree {result.degree})") if len(result.stages) <= 1 else (
+        f"{sum(stage.n_restarts for stage in result.stages)} restart(s) in "
+        f"{len(result.stages)} stages of {result.method} under {result.constraint} rules "
+        f"(degrees {', '.join(map(str, degrees))})")
+    return (f"HINT     none of {ran} found a collision-free path: "
             f"try {', '.join(tries[:-1]) + ' or ' + tries[-1] if len(tries) > 1 else tries[0]}; "
             f"the best path found collides by "
-            f"{float(result.restarts.best_violation[result.best_restart]):.3g} cm")
+            f"{float(result.restarts.best_violation[result.best_restart]):.3g} cm"
+            + _where_it_collides(result.witness, obstacle_names))
+
+
+def _where_it_collides(witness, obstacle_names: dict | None) -> str:
+    """``Result.witness`` in words (empty without one)."""
+    if witness is None:
+        return ""
+    r, link, _, distance, name = witness
+    name = (obstacle_names or {}).get(name, name)
+    how = (f"{-distance:.3g} cm inside {name}" if distance < 0
+           else f"{distance:.3g} cm from {name}, inside the margin")
+    return f": link {link + 1} is {how} at r = {r:.4g}"
+
+
+def _stages_line(result: Result) -> list[str]:
+    """The stages an escalating search ran, when there was more than one."""
+    if len(result.stages) <= 1:
+        return []
+    limit = "" if result.time_limit is None else f" (time limit {result.time_limit:g} s)"
+    parts = [f"degree {stage.degree} x {stage.n_restarts}{' seeded' if stage.seeded else ''}"
+             for stage in result.stages]
+    return [f"stages   {len(result.stages)} in {result.stages[-1].seconds:.1f} s{limit}: "
+            + ", ".join(parts)]
+
+
+WITNESS_KEYS = ("r", "link", "obstacle", "distance", "name")  # ``Result.witness``'s fields
 
 
 class Result(NamedTuple):
@@ -76,9 +115,15 @@ class Result(NamedTuple):
     config: pso.PSOConfig | evosax_adapter.StrategyConfig  # the best restart's method's
     constraint: str
     collision: str  # the collision mode the search used
-    degree: int  # the path degree searched (the problem's)
+    degree: int  # the degree of the paths in ``restarts`` (the problem's, or the one an
+    #   escalating search found its best path at)
     seed: int
     seconds: float  # wall time of the call, compilation included
+    stages: tuple = ()  # ``escalation.Stage`` per stage run (none in records made before them)
+    time_limit: float | None = None  # s, the search's (None: none)
+    witness: tuple | None = None  # where the best path collides, when it does: (r, link
+    #   (0-based), obstacle (index in ``World``'s order), distance (cm), the obstacle's name
+    #   in ``World``: "boxes[2]") (``collision_witness``)
 
     @property
     def best_x(self) -> np.ndarray:
@@ -109,14 +154,16 @@ class Result(NamedTuple):
     def n_restarts(self) -> int:
         return int(self.restarts.best_fitness.shape[0])
 
-    def summary(self, flags: bool = False) -> str:
+    def summary(self, flags: bool = False, obstacle_names: dict | None = None) -> str:
         """A few human-readable lines; ``flags``: a hint names the command line's flags
-        (``jaxarm solve``) instead of Python's keywords."""
+        (``jaxarm solve``) instead of Python's keywords; ``obstacle_names``: ``World``'s
+        obstacle names (``"boxes[0]"``) -> the names to print (a scenario file's)."""
         escaped = int(np.sum(self.restarts.escape_iter >= 0))
         return "\n".join([
             f"method {self.method} ({self.config.velocity_rule}), constraint {self.constraint}, "
             f"{self.n_restarts} restart(s), degree {self.degree}, {self.collision} collision "
             f"check, seed {self.seed}",
+            *_stages_line(self),
             f"{f'best {coefficient_label(self.degree)}':<8} {exact_text(self.best_x)}",
             f"fitness  {self.best_fitness:.5g}  feasible {self.feasible}  "
             f"certified {self.certified}",
@@ -125,7 +172,7 @@ class Result(NamedTuple):
               if self.feasible and not self.certified else []),
             f"escape   iteration {self.escape_iter} (best restart); "
             f"{escaped}/{self.n_restarts} restarts escaped",
-            *([_nothing_escaped(self, flags)] if not self.feasible else []),
+            *([_nothing_escaped(self, flags, obstacle_names)] if not self.feasible else []),
             f"time     {self.seconds:.2f} s",
         ])
 
@@ -152,6 +199,11 @@ class Result(NamedTuple):
             "degree": self.degree,
             "seed": self.seed,
             "seconds": self.seconds,
+            "stages": [{key: None if isinstance(value, float) and math.isinf(value) else value
+                        for key, value in stage._asdict().items()} for stage in self.stages],
+            "time_limit": self.time_limit,
+            "witness": None if self.witness is None else dict(
+                zip(WITNESS_KEYS, self.witness)),
         }
 
     @classmethod
@@ -161,9 +213,15 @@ class Result(NamedTuple):
         restarts = RestartOutcome(**{
             name: np.asarray(values, dtype=np.int32 if name in integer else np.float64)
             for name, values in data["restarts"].items()})
-        # (records written before ``degree`` was kept have none)
-        fields = {name: data.get(name) if name == "degree" else data[name]
+        # (records written before ``degree``, ``stages``, ... were kept have none)
+        optional = {"degree", "stages", "time_limit", "witness"}
+        fields = {name: data.get(name) if name in optional else data[name]
                   for name in cls._fields if name != "restarts"}
+        fields["stages"] = tuple(
+            Stage(**{**stage, "time_left": math.inf if stage["time_left"] is None
+                     else stage["time_left"]}) for stage in fields["stages"] or ())
+        if fields["witness"] is not None:
+            fields["witness"] = tuple(fields["witness"][key] for key in WITNESS_KEYS)
         config = fields["config"]
         fields["config"] = (evosax_adapter.StrategyConfig(**config) if "strategy" in config
                             else pso.PSOConfig(**config))
@@ -194,18 +252,28 @@ def _plain(array) -> list:
 def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
           n_particles: int = N_PARTICLES, n_iters: int = N_ITERS, n_restarts: int | None = None,
           seed: int = 0, constraint: str | None = None, init_particles=None,
-          refine: bool | str = False) -> Result:
-    """Search the problem's free coefficients with PSO, ``n_restarts`` independent swarms at once.
+          refine: bool | str = False, time_limit: float | None = None,
+          max_stages: int | None = None, improve: bool = False,
+          progress: Callable | bool | None = None) -> Result:
+    """Search the problem's free coefficients with PSO, ``n_restarts`` independent swarms at once,
+    and, under a time limit, more restarts and higher degrees until a path is proved free.
 
     With no method, ``DEFAULT_RESTARTS`` (8) swarms of each of ``DEFAULT_METHODS`` (preset A
     with the ring topology and inertia falling to 0.4, then preset A) under
     ``DEFAULT_CONSTRAINT`` (feasibility rules), and the best of them: the search meant to find
-    a collision-free path (``jaxarm.choices`` says why these). Naming a method runs that
-    method, and by default one swarm, as the paper did: ``solve(problem, "A")`` is the paper's
-    preset A with its death penalty.
+    a collision-free path (``jaxarm.choices`` says why these). It is anytime: when no
+    restart's path is certified free, it goes on for up to ``DEFAULT_TIME_LIMIT`` seconds
+    (120) with more restarts, then higher degrees seeded with the best paths so far
+    (``jaxarm.escalation``), and returns the best certified path at the degree it was found
+    (``Result.degree``; ``Result.stages`` says what ran). It stops at the first stage that
+    certifies a path, or with ``improve=True`` spends the rest of the time on the next stages
+    and keeps the fittest. Naming a method runs that method, and by default one swarm, once, as
+    the paper did: ``solve(problem, "A")`` is the paper's preset A with its death penalty; give
+    it a ``time_limit`` to escalate it the same way.
 
     Restart i is seeded by ``fold_in(key(seed), i)``; its result does not depend on
-    ``n_restarts`` (see ``jaxarm.optim.restarts``).
+    ``n_restarts`` (see ``jaxarm.optim.restarts``). The stages come in a fixed order, so the
+    time limit decides only how many run; ``max_stages`` repeats a run stage for stage.
 
     Args:
       problem: the problem.
@@ -217,7 +285,7 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
       n_iters: PSO updates (paper: 100); iteration 0 is the initial swarm.
       n_restarts: independent swarms (default: 8 per default method, 1 with a named one).
         Restarts are numbered across the default's methods: the first method's are 0 ..
-        n - 1, the next's n .. 2n - 1.
+        n - 1, the next's n .. 2n - 1; later stages take the numbers after them.
       seed: integer seed in [0, 2**31).
       constraint: "death" (paper eq. 17), "feasibility" (feasibility rules), "epsilon" or
         "penalty" (``jaxarm.optim.constraints``); default: the rule ``method`` names, else
@@ -228,6 +296,17 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
         restart's initial swarm (paper Table 6).
       refine: polish with ``jaxarm.refine`` after PSO: False, True (the best restart) or
         "all" (every feasible restart, then the best is chosen again). Never worse.
+      time_limit: seconds (compilation included) the search may go on while nothing is
+        certified free; None: none when ``max_stages`` is given, else ``DEFAULT_TIME_LIMIT``
+        with the default method and no escalation with a named one; ``math.inf``: the whole
+        plan. Stage 0 (the call as asked) always runs whole; a later stage starts a chunk
+        only when it is expected to fit.
+      max_stages: run at most this many stages (None: as many as the time allows); 1 is the
+        call as asked, without escalation.
+      improve: go on after a certified path is found, until the time or the plan runs out,
+        keeping the fittest certified path.
+      progress: called with each finished ``escalation.Stage`` (its ``line()`` is one line of
+        text); None: logged by the ``jaxarm.search`` logger at INFO; False: silent.
 
     Returns:
       ``Result``.
@@ -256,12 +335,12 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
                  restarts_at_once=n_restarts)
     if refine not in (False, True, "all"):
         raise ValueError(f"refine must be False, True or 'all', got {refine!r}")
+    limit, max_stages = _stage_limits(method, time_limit, max_stages, improve, progress)
     given = _check_init_particles(problem, init_particles, n_particles)
-    outcomes = [run_restarts(problem, variant.config, constraint, n_particles=n_particles,
-                             n_iters=n_iters, seed=seed, first_restart=i * n_restarts,
-                             n_restarts=n_restarts, init_particles=given)
-                for i, variant in enumerate(variants)]
-    outcome = outcomes[0].concatenate(*outcomes[1:]) if len(outcomes) > 1 else outcomes[0]
+    found = escalate(problem, variants, constraint, n_particles=n_particles, n_iters=n_iters,
+                     n_restarts=n_restarts, seed=seed, init_particles=given, time_limit=limit,
+                     max_stages=max_stages, improve=improve, progress=progress, began=began)
+    problem, outcome = found.problem, found.outcome
     pso_best = float(outcome.best_fitness[outcome.best_restart()])
     if refine:
         outcome = _refined(problem, outcome, every=refine == "all")
@@ -269,14 +348,43 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
     feasible = bool(outcome.feasible[best])
     certified = feasible and (problem.collision == "certified"
                               or bool(certify(problem, outcome.best_x[best]).free))
+    witness = None if feasible else _witness(problem, outcome.best_x[best])
     method_name = (variants[0].name if len(variants) == 1 else
-                   " + ".join(f"{variant.name} x {n_restarts}" for variant in variants))
+                   " + ".join(f"{variant.name} x {found.n_restarts}" for variant in variants))
     return Result(restarts=outcome, best_restart=best, certified=certified,
                   pso_best_fitness=pso_best, method=method_name,
-                  config=variants[best // n_restarts].config,
+                  config=variants[int(found.variant[best])].config,
                   constraint=constraint, collision=problem.collision, degree=problem.degree,
-                  seed=int(seed),
-                  seconds=time.perf_counter() - began)
+                  seed=int(seed), seconds=time.perf_counter() - began, stages=found.stages,
+                  time_limit=None if math.isinf(limit) else limit, witness=witness)
+
+
+def _stage_limits(method, time_limit, max_stages, improve, progress) -> tuple[float, int | None]:
+    """``solve``'s time limit (s; inf: none) and stage count, checked."""
+    if time_limit is None:  # max_stages bounds the work; else the default's limit, or one stage
+        time_limit = DEFAULT_TIME_LIMIT if method is None and max_stages is None else math.inf
+        if method is not None and max_stages is None:
+            max_stages = 1
+    elif isinstance(time_limit, bool) or not isinstance(time_limit, (int, float)) or not (
+            time_limit > 0):
+        raise ValueError(f"time_limit must be a positive number of seconds, got {time_limit!r}")
+    if max_stages is not None:
+        max_stages = positive_int("max_stages", max_stages)
+    if not isinstance(improve, bool):
+        raise ValueError(f"improve must be True or False, got {improve!r}")
+    if not (progress is None or progress is False or callable(progress)):
+        raise ValueError(f"progress must be a function, None or False, got {progress!r}")
+    return float(time_limit), max_stages
+
+
+def _witness(problem: Problem, x) -> tuple | None:
+    """Where the path x collides under the problem's check (``Result.witness``), or None where
+    the check names no contact (a joint limit alone)."""
+    found = collision_witness(problem, x)
+    if int(found.obstacle) < 0:
+        return None
+    return (float(found.r), int(found.link), int(found.obstacle), float(found.distance),
+            problem.world.obstacle_name(int(found.obstacle)))
 
 
 def _refined(problem, outcome: RestartOutcome, every: bool) -> RestartOutcome:

@@ -22,6 +22,7 @@ from jaxarm.checks import collision as collision_lib
 from jaxarm.model import path
 from jaxarm.model import world as world_lib
 from jaxarm.model.arm import link_endpoints
+from jaxarm.model.path_functions import joint_path
 from jaxarm.model.problem import Problem, ProblemArrays, ProblemSpec, as_params
 
 # Postures whose link-obstacle distances are computed at once: memory stays bounded by this
@@ -66,6 +67,25 @@ def link_distances(lengths, world, theta):
         return separation.min(axis=1), jnp.argmin(separation, axis=1).astype(jnp.int32)
 
     return jax.lax.map(one, theta, batch_size=POSTURES_AT_ONCE)
+
+
+_link_distances = jit(link_distances)
+
+
+def clearance_along(problem: Problem, x, r):
+    """Every link's exact distance to its nearest obstacle along one path (cm; negative: inside
+    one) and which obstacle that is (index in ``World``'s order).
+
+    Args:
+      x: free parameters, shape (n_free,).
+      r: instants in [0, 1], shape (n_r,).
+
+    Returns:
+      ``(distance, obstacle)``, NumPy arrays of shape (n_r, n_joints).
+    """
+    theta = joint_path(problem, x, r)
+    distance, slot = _link_distances(problem.arrays.lengths, problem.arrays.world, theta)
+    return np.asarray(distance), obstacle_index(problem, np.asarray(slot))
 
 
 @functools.partial(jit, static_argnums=0, storable=True)

@@ -28,9 +28,16 @@ class SavedRun(NamedTuple):
 
 def run_record(problem: Problem, method: str | None, settings: dict, result: Result) -> dict:
     """What ``solve --json`` writes: the problem as a scenario table, the method, ``solve``'s
-    keyword arguments, the ``Result`` and the jaxarm and jax versions."""
+    keyword arguments, the ``Result`` and the jaxarm and jax versions.
+
+    The settings repeat the stages that ran rather than the time they had (``max_stages``,
+    no time limit): the same stages on any machine, so the same result bit for bit; the
+    time limit asked for stays in the result (``Result.time_limit``)."""
+    settings = dict(settings)
+    if result.stages:
+        settings.update(time_limit=None, max_stages=len(result.stages))
     return {"jaxarm": __version__, "jax": jax.__version__, "scenario": problem.name,
-            "problem": scenario_table(problem), "method": method, "settings": dict(settings),
+            "problem": scenario_table(problem), "method": method, "settings": settings,
             "result": result.to_dict()}
 
 

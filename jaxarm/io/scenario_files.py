@@ -128,6 +128,17 @@ def load_scenario(name_or_path: str | pathlib.Path, **overrides) -> Problem:
         raise ScenarioError(f"{source}: {error}") from None
 
 
+def obstacle_names(name_or_path: str | pathlib.Path) -> dict[str, str]:
+    """Each obstacle's name in ``World`` (``"boxes[0]"``) -> its name in the scenario file
+    (``"obstacles[3]"``, a map's boxes ``"obstacles[3] (box 12 of room.yaml)"``), for
+    messages about a problem ``load_scenario(name_or_path)`` loaded."""
+    text, _, folder = _read(name_or_path)
+    try:
+        return _obstacles(tomllib.loads(text).get("obstacles", []), folder)[1]
+    except (ValueError, TypeError):  # the file changed since it loaded: World's names
+        return {}
+
+
 def _read(name_or_path) -> tuple[str, str, pathlib.Path]:
     """The scenario's text, its name in messages, and the folder its maps are relative to."""
     if not str(name_or_path).strip():

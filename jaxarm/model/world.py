@@ -110,6 +110,16 @@ class World:
         return (len(self.circles), len(polygons),
                 max((len(p) for p in polygons), default=4))
 
+    def obstacle_name(self, index: int) -> str:
+        """The name of obstacle ``index`` in ``World``'s order (circles, boxes, polygons):
+        ``"boxes[2]"``."""
+        for kind in ("circles", "boxes", "polygons"):
+            count = len(getattr(self, kind))
+            if 0 <= index < count:
+                return f"{kind}[{index}]"
+            index -= count
+        raise ValueError(f"obstacle index must be in [0, {self.n_obstacles}), got {index!r}")
+
     def slot_names(self, capacities: tuple[int, int, int]) -> list[str | None]:
         """Obstacle name of every slot of a packing (circle slots, then polygon slots)."""
         n_circle_slots, n_polygon_slots, _ = capacities

@@ -1,0 +1,128 @@
+"""The anytime default (``jaxarm.escalation`` through ``solve``): stages, time limit, progress,
+and a failure that says what ran, where the best path collides and what to try."""
+
+import json
+import logging
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import jaxarm
+from jaxarm import escalation
+from jaxarm.choices import MAX_DEGREE
+
+TINY = dict(n_particles=4, n_iters=3)
+
+
+@pytest.fixture(scope="module")
+def trapped():
+    """No path exists: the first link is walled in by two boxes beside the base, one each way
+    round, and its goal angle lies past them. The sampled check: the stages are the same under
+    either, and its search compiles faster."""
+    return jaxarm.Problem(
+        arm=jaxarm.Arm((30.0, 30.0, 20.0)), start=[0.0, 0.5, 0.5], goal=[np.pi, -0.5, -0.5],
+        world=jaxarm.World(boxes=[((-2.0, 4.0), (2.0, 10.0)), ((-2.0, -10.0), (2.0, -4.0))]),
+        name="trapped", collision="sampled")
+
+
+def test_the_plan_runs_more_restarts_then_each_higher_degree_seeded():
+    plan = escalation.stage_plan(6, 8)
+    assert plan[:4] == [(6, 8, False), (6, 24, False), (8, 8, True), (8, 24, True)]
+    degrees = [stage.degree for stage in plan]
+    assert degrees == sorted(degrees) and degrees[-1] == MAX_DEGREE
+    assert [stage.degree for stage in escalation.stage_plan(23, 8)] == [23, 23, 24, 24]
+
+
+def test_a_per_coefficient_init_range_reaches_the_new_powers(case2):
+    low = tuple(-float(v) for v in range(1, 4))
+    problem = case2.replace(init_low=low, init_high=tuple(-v for v in low))
+    raised = escalation.at_degree(problem, 8)
+    assert raised.degree == 8 and raised.init_low == low + low[-3:] * 2
+
+
+def test_nothing_free_escalates_stage_by_stage_and_says_what_ran(trapped):
+    seen = []
+    result = jaxarm.solve(trapped, max_stages=3, progress=seen.append, **TINY)
+    assert [stage.index for stage in seen] == [0, 1, 2] and result.stages == tuple(seen)
+    assert [(s.degree, s.n_restarts, s.seeded) for s in seen] == [
+        (6, 16, False), (6, 48, False), (8, 16, True)]
+    assert not result.feasible and not result.certified
+    assert "sampled collision check" in result.summary()
+    assert result.degree in (6, 8) and result.best_x.shape == (3 * (result.degree - 5),)
+    python, flags = result.summary(), result.summary(flags=True)
+    assert "80 restart(s) in 3 stages" in python and "(degrees 6, 8)" in python
+    assert "problem.replace(degree=10)" in python and "--degree 10" in flags
+    assert "degree=8)" not in python and "--degree 8" not in flags  # never one already tried
+    # where it collides: the witness, named as World names it (or as a file does)
+    r, link, obstacle, distance, name = result.witness
+    assert name == trapped.world.obstacle_name(obstacle) and name in python
+    assert f"link {link + 1} is" in python
+    assert "obstacles[1]" in result.summary(obstacle_names={name: "obstacles[1]"})
+
+
+def test_stage_zero_alone_is_the_call_as_asked_and_a_record_repeats_the_stages(case2, trapped):
+    single = jaxarm.solve(case2, max_stages=1, progress=False, **TINY)
+    default = jaxarm.solve(case2, progress=False, **TINY)  # certified at stage 0
+    np.testing.assert_array_equal(single.best_x, default.best_x)
+    assert len(default.stages) == 1 and default.certified
+    from jaxarm.io.runs import run_record
+
+    first = jaxarm.solve(trapped, max_stages=2, progress=False, **TINY)
+    record = run_record(trapped, None, dict(TINY, time_limit=30.0), first)
+    assert record["settings"]["max_stages"] == 2 and record["settings"]["time_limit"] is None
+    json.dumps(record, allow_nan=False)
+    again = jaxarm.solve(trapped, progress=False, **record["settings"])
+    np.testing.assert_array_equal(again.best_x, first.best_x)
+    assert jaxarm.Result.from_dict(record["result"]).stages == first.stages
+
+
+def test_improve_spends_the_stages_on_a_fitter_path(case2):
+    quick = jaxarm.solve(case2, max_stages=3, progress=False, **TINY)
+    better = jaxarm.solve(case2, max_stages=3, improve=True, progress=False, **TINY)
+    assert len(quick.stages) == 1 and len(better.stages) == 3
+    assert better.certified and better.best_fitness >= quick.best_fitness
+
+
+def test_a_short_time_limit_stops_after_stage_zero(trapped, caplog):
+    with caplog.at_level(logging.INFO, logger="jaxarm.search"):
+        result = jaxarm.solve(trapped, time_limit=1e-3, **TINY)
+    assert len(result.stages) == 1 and result.stages[0].time_ran_out
+    assert "stage 0: degree 6, 16 restart(s)" in caplog.text
+    assert "a longer time limit (time_limit=0.002)" in result.summary()
+
+
+def test_a_named_method_runs_once_unless_given_a_time_limit(trapped):
+    assert len(jaxarm.solve(trapped, "A", **TINY).stages) == 1
+    result = jaxarm.solve(trapped, "A", time_limit=math.inf, max_stages=2, progress=False,
+                          **TINY)
+    assert [stage.n_restarts for stage in result.stages] == [1, 3]
+
+
+@pytest.mark.parametrize("field, value", [("time_limit", 0), ("time_limit", -1.0),
+                                          ("time_limit", float("nan")), ("time_limit", "60"),
+                                          ("max_stages", 0), ("improve", "yes"),
+                                          ("progress", "loud")])
+def test_bad_search_limits_name_the_field(case2, field, value):
+    with pytest.raises(ValueError, match=field):
+        jaxarm.solve(case2, **{field: value})
+
+
+def test_the_command_line_reports_stages_and_where_the_best_path_collides(tmp_path, trapped):
+    scene = tmp_path / "trapped.toml"
+    jaxarm.save_scenario(trapped, scene)
+    run = subprocess.run(
+        [sys.executable, "-m", "jaxarm", "solve", str(scene), "--time-limit", "0.001",
+         "--particles", "4", "--iters", "3", "--json", str(tmp_path / "run.json")],
+        capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    assert "jaxarm: stage 0: degree 6, 16 restart(s)" in run.stderr
+    assert "--time-limit 0.002" in run.stdout and "--degree 8" in run.stdout
+    assert "inside obstacles[" in run.stdout and "boxes[" not in run.stdout
+    saved = jaxarm.load_run(tmp_path / "run.json")
+    assert saved.settings["max_stages"] == 1 and saved.result.witness is not None
+    bad = subprocess.run([sys.executable, "-m", "jaxarm", "solve", "paper-case-2",
+                          "--time-limit", "0"], capture_output=True, text=True, timeout=600)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "--time-limit" in bad.stderr
