@@ -2,10 +2,12 @@
 
 Stage 0 is the call as asked (the default's 8 + 8 restarts at the problem's degree: the same
 bits as a search without a time limit). While no restart has a certified-free path and time is
-left, the next stage of ``stage_plan`` runs: three times the restarts at the same degree, then
-each higher degree (by 2, up to ``MAX_DEGREE``) seeded with the best paths found so far raised
-to it (``raise_degree``: the same motions, so a stage starts where the last one got to), first
-with the stage-0 restarts, then three times as many.
+left, the next stage of ``stage_plan`` runs: as many restarts again at the same degree (new
+seeds), then each higher degree (by 2, up to ``MAX_DEGREE``) seeded with the best paths found
+so far raised to it (``raise_degree``: the same motions, so a stage starts where the last one
+got to), first with the stage-0 restarts, then three times as many. The plan spends little on
+more restarts before it climbs: at degree 6 a joint's path has one free coefficient, so more
+swarms search the same small family of paths, and a higher degree is what adds shapes.
 
 A stage runs in chunks of stage 0's size (one compiled program per degree; a later stage stops
 at its first chunk with a certified path), and starts only when it is expected to end within
@@ -33,7 +35,7 @@ from jaxarm.optim import evosax_adapter
 from jaxarm.optim.restarts import RestartOutcome, run_restarts
 
 LOGGER = logging.getLogger("jaxarm.search")
-MORE_RESTARTS = 3  # a stage's second part runs this many times the stage-0 restarts
+MORE_RESTARTS = 3  # a higher degree's second stage runs this many times the stage-0 restarts
 SEEDS = 4  # best paths so far given to every swarm of a higher degree
 
 
@@ -72,8 +74,7 @@ class Stage(NamedTuple):
 
 def stage_plan(degree: int, n_restarts: int) -> list[StagePlan]:
     """The stages in order from a problem's degree and the stage-0 restarts per method."""
-    plan = [StagePlan(degree, n_restarts, False),
-            StagePlan(degree, MORE_RESTARTS * n_restarts, False)]
+    plan = [StagePlan(degree, n_restarts, False), StagePlan(degree, n_restarts, False)]
     for higher in range(degree + 2, MAX_DEGREE + 2, 2):
         higher = min(higher, MAX_DEGREE)
         if higher > plan[-1].degree:

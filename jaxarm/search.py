@@ -318,19 +318,8 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
       (True, True, (3,))
     """
     began = time.perf_counter()
-    if method is None:
-        constraint = DEFAULT_CONSTRAINT if constraint is None else constraint
-        variants = [parse_method(name, constraint) for name in DEFAULT_METHODS]
-        n_restarts = DEFAULT_RESTARTS if n_restarts is None else n_restarts
-    else:
-        variants = [parse_method(method, constraint)]
-        n_restarts = 1 if n_restarts is None else n_restarts
+    variants, n_restarts = _variants(method, constraint, n_restarts, init_particles)
     constraint = variants[0].constraint
-    if (isinstance(variants[0].config, evosax_adapter.StrategyConfig)
-            and init_particles is not None):
-        raise ValueError(f"init_particles: {variants[0].name} starts from its own "
-                         "population; give init_particles to a PSO method")
-    n_restarts = positive_int("n_restarts", n_restarts)
     check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint,
                  restarts_at_once=n_restarts)
     if refine not in (False, True, "all"):
@@ -357,6 +346,22 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
                   constraint=constraint, collision=problem.collision, degree=problem.degree,
                   seed=int(seed), seconds=time.perf_counter() - began, stages=found.stages,
                   time_limit=None if math.isinf(limit) else limit, witness=witness)
+
+
+def _variants(method, constraint, n_restarts, init_particles) -> tuple[list, int]:
+    """The methods ``solve`` runs (``Variant``s) and the restarts of each, checked."""
+    if method is None:
+        constraint = DEFAULT_CONSTRAINT if constraint is None else constraint
+        variants = [parse_method(name, constraint) for name in DEFAULT_METHODS]
+        n_restarts = DEFAULT_RESTARTS if n_restarts is None else n_restarts
+    else:
+        variants = [parse_method(method, constraint)]
+        n_restarts = 1 if n_restarts is None else n_restarts
+    if (isinstance(variants[0].config, evosax_adapter.StrategyConfig)
+            and init_particles is not None):
+        raise ValueError(f"init_particles: {variants[0].name} starts from its own "
+                         "population; give init_particles to a PSO method")
+    return variants, positive_int("n_restarts", n_restarts)
 
 
 def _stage_limits(method, time_limit, max_stages, improve, progress) -> tuple[float, int | None]:

@@ -71,7 +71,8 @@ def test_cli_solve_json_describes_its_run_well_enough_to_repeat_it(capsys, tmp_p
     data = json.loads((tmp_path / "r.json").read_text())
     assert data["jaxarm"] == jaxarm.__version__ and data["jax"]
     assert data["settings"] == dict(n_particles=6, n_iters=10, n_restarts=3, seed=4,
-                                    constraint="feasibility", refine="all")
+                                    constraint="feasibility", refine="all", improve=False,
+                                    time_limit=None, max_stages=1)  # the stages that ran
     scenario = tmp_path / "again.toml"
     scenario.write_text(tomli_w.dumps(data["problem"]))
     problem = jaxarm.load_scenario(scenario)

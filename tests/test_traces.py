@@ -50,6 +50,8 @@ def _solve(folder, out, flags=(), first_line: str = "") -> tuple[int, dict]:
     printed = json.loads(done.stdout.strip().splitlines()[-1])
     result = json.loads(out.read_text())["result"]
     del result["seconds"]
+    for stage in result["stages"]:  # timings
+        del stage["seconds"], stage["time_left"]
     return printed["exports"], dict(result, clearance=printed["clearance"])
 
 
