@@ -9,11 +9,6 @@ rules) find, together. Then the time of a warm default call on paper-case-1
 
     .venv/bin/python benchmarks/default_bench.py [--seeds 10] [--restarts 200]
         [--scenarios a,b,...]
-
-``--hard [--seeds 3]`` instead runs the default on scenes where its first stage finds nothing
-(``hard_scenes``) and on one with no path at all: how many calls end certified within the
-time limit, at which degree, and how long they took, compiling included (each scene's first
-call in a fresh process compiles what the scenes before it did not).
 """
 
 from __future__ import annotations
@@ -26,8 +21,7 @@ import jax
 import numpy as np
 
 import jaxarm
-from jaxarm.choices import (DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS,
-                            DEFAULT_TIME_LIMIT)
+from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS
 from jaxarm.io.scenario_files import available
 
 REFERENCE_METHODS = tuple(f"{method}:{DEFAULT_CONSTRAINT}" for method in DEFAULT_METHODS)
@@ -56,60 +50,12 @@ def warm_call_seconds(repeats: int = 5) -> float:
     return statistics.median(times)
 
 
-def hard_scenes() -> dict:
-    """Scenes where the default's first stage (degree 6, 16 restarts) certifies nothing, and
-    one where no path exists (the first link walled in beside the base)."""
-    five = jaxarm.load_scenario("five-link-detour").replace(world=jaxarm.World(), margin=1.0)
-    return {
-        **{f"five-link-detour arm, 25 circles (seed {seed}), margin 1 cm":
-           jaxarm.clutter(five, 25, "circles", size=(3.0, 6.0), seed=seed)
-           for seed in HARD_CLUTTER_SEEDS},
-        **{f"{name}, margin {margin:g} cm": jaxarm.load_scenario(name).replace(margin=margin)
-           for name, margin in HARD_MARGINS},
-        "impossible: the first link walled in": jaxarm.Problem(
-            arm=jaxarm.Arm((30.0, 30.0, 20.0)), start=[0.0, 0.5, 0.5],
-            goal=[np.pi, -0.5, -0.5], name="walled-in",
-            world=jaxarm.World(boxes=[((-2.0, 4.0), (2.0, 10.0)),
-                                      ((-2.0, -10.0), (2.0, -4.0))])),
-    }
-
-
-HARD_CLUTTER_SEEDS = ()  # filled from the exploration below
-HARD_MARGINS = ()
-
-
-def hard_row(name: str, problem, n_seeds: int) -> str:
-    calls = []
-    for seed in range(n_seeds):
-        began = time.perf_counter()
-        result = jaxarm.solve(problem, seed=seed, progress=False)
-        calls.append((result, time.perf_counter() - began))
-    certified = sum(result.certified for result, _ in calls)
-    degrees = sorted({result.degree for result, _ in calls if result.certified})
-    stages = [len(result.stages) for result, _ in calls]
-    seconds = [elapsed for _, elapsed in calls]
-    return (f"| {name} | {certified}/{n_seeds} | {', '.join(map(str, degrees)) or '-'} | "
-            f"{min(stages)}-{max(stages)} | {statistics.median(seconds):.0f} | "
-            f"{max(seconds):.0f} |")
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--restarts", type=int, default=200)
     parser.add_argument("--scenarios", default=",".join(available()))
-    parser.add_argument("--hard", action="store_true")
     args = parser.parse_args()
-    if args.hard:
-        print(f"solve(problem, seed=s), s = 0..{args.seeds - 1}, the default (time limit "
-              f"{DEFAULT_TIME_LIMIT:g} s); jax {jax.__version__} on "
-              f"{jax.devices()[0].platform}\n")
-        print("| scene | calls certified free | degrees found | stages run | median s | "
-              "longest s |")
-        print("|---|---|---|---|---|---|")
-        for name, problem in hard_scenes().items():
-            print(hard_row(name, problem, args.seeds), flush=True)
-        return
     print(f"solve(problem, seed=s), s = 0..{args.seeds - 1}: {DEFAULT_RESTARTS} restarts each "
           f"of {' and '.join(DEFAULT_METHODS)} under {DEFAULT_CONSTRAINT} rules, certified check; "
           f"reference: "

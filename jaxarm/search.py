@@ -13,6 +13,7 @@ import numpy as np
 
 from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import certify, collision_witness
+from jaxarm.checks.witness import clearance_along
 from jaxarm.choices import (DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS,
                             DEFAULT_TIME_LIMIT, MAX_DEGREE)
 from jaxarm.io.files import text_writer, write_or_return
@@ -123,7 +124,7 @@ class Result(NamedTuple):
     time_limit: float | None = None  # s, the search's (None: none)
     witness: tuple | None = None  # where the best path collides, when it does: (r, link
     #   (0-based), obstacle (index in ``World``'s order), distance (cm), the obstacle's name
-    #   in ``World``: "boxes[2]") (``collision_witness``)
+    #   in ``World``: "boxes[2]"), the deepest contact by exact distances (``_witness``)
 
     @property
     def best_x(self) -> np.ndarray:
@@ -383,13 +384,21 @@ def _stage_limits(method, time_limit, max_stages, improve, progress) -> tuple[fl
 
 
 def _witness(problem: Problem, x) -> tuple | None:
-    """Where the path x collides under the problem's check (``Result.witness``), or None where
-    the check names no contact (a joint limit alone)."""
-    found = collision_witness(problem, x)
-    if int(found.obstacle) < 0:
-        return None
-    return (float(found.r), int(found.link), int(found.obstacle), float(found.distance),
-            problem.world.obstacle_name(int(found.obstacle)))
+    """Where the path x collides (``Result.witness``): the instant where a link comes deepest
+    into an obstacle (or its margin) by exact distances at 4 instants per sample interval,
+    or where the problem's check finds it when those miss it (a contact thinner than that);
+    None where the check names no contact (a joint limit alone)."""
+    r = np.linspace(0.0, 1.0, 4 * (problem.n_samples - 1) + 1)
+    distance, obstacle = clearance_along(problem, x, r)
+    at, link = np.unravel_index(np.argmin(distance), distance.shape)
+    if distance[at, link] < problem.margin:
+        found = (float(r[at]), int(link), int(obstacle[at, link]), float(distance[at, link]))
+    else:  # a contact thinner than the instants' spacing: where the check found it
+        check = collision_witness(problem, x)
+        if int(check.obstacle) < 0:
+            return None
+        found = (float(check.r), int(check.link), int(check.obstacle), float(check.distance))
+    return found + (problem.world.obstacle_name(found[2]),)
 
 
 def _refined(problem, outcome: RestartOutcome, every: bool) -> RestartOutcome:
