@@ -9,17 +9,17 @@ got to), first with the stage-0 restarts, then three times as many. The plan spe
 more restarts before it climbs: at degree 6 a joint's path has one free coefficient, so more
 swarms search the same small family of paths, and a higher degree is what adds shapes.
 
-A stage runs in chunks of stage 0's size (one compiled program per degree; a later stage stops
-at its first chunk with a certified path), and starts only when it is expected to end within
-the time limit (``_ChunkClock``: the chunks' times at that degree, or at a new degree the last
-degree's, compilation included, scaled by (degree + 1)^2, how the certified check's work
-grows). Stages run whole or not at all and come in a fixed order, so a seed gives the same
-stages on any machine; the time limit only decides how many run, and ``max_stages`` repeats a
-run stage for stage.
+A stage runs in chunks of stage 0's size (one compiled program per degree and method; a later
+stage stops at its first chunk with a certified path), and starts only when it is expected to
+end within the time limit (``_ChunkClock``: the chunks' times at that degree, or at a new
+degree the last degree's, scaled up, and its compiling). Stages run whole or not at all and
+come in a fixed order, so a seed gives the same stages on any machine; the time limit only
+decides how many run, and ``max_stages`` repeats a run stage for stage.
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import time
@@ -27,6 +27,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
+from jaxarm._compile import timing
 from jaxarm.checks.evaluate import certify
 from jaxarm.choices import MAX_DEGREE
 from jaxarm.model.path import raise_degree
@@ -37,6 +38,7 @@ from jaxarm.optim.restarts import RestartOutcome, run_restarts
 LOGGER = logging.getLogger("jaxarm.search")
 MORE_RESTARTS = 3  # a higher degree's second stage runs this many times the stage-0 restarts
 SEEDS = 4  # best paths so far given to every swarm of a higher degree
+COMPILE_FLOOR = 1.5  # s per degree and method: compiling a search program not yet compiled
 
 
 class StagePlan(NamedTuple):
@@ -125,7 +127,7 @@ def escalate(problem: Problem, variants: list, constraint: str, *, n_particles: 
     plan = stage_plan(problem.degree, n_restarts)[:max_stages]
     deadline = began + time_limit
     by_degree: dict[int, list] = {}  # degree -> [(outcome, variant, certified)]
-    clock = _ChunkClock()
+    clock = _ChunkClock(len(variants))
     stages, next_restart, seeds, best = [], 0, None, _Best(-math.inf, problem.degree)
     for index, stage in enumerate(plan):
         chunks = [(i, chunk) for chunk in range(stage.n_restarts // n_restarts)
@@ -141,12 +143,10 @@ def escalate(problem: Problem, variants: list, constraint: str, *, n_particles: 
         for i, chunk in chunks:
             if index and ran and ran[-1][2].any() and not improve:
                 break
-            chunk_began = time.perf_counter()
-            outcome = run_restarts(
-                staged, variants[i].config, constraint, n_particles=n_particles,
+            outcome = clock.timed(stage.degree, functools.partial(
+                run_restarts, staged, variants[i].config, constraint, n_particles=n_particles,
                 n_iters=n_iters, seed=seed, n_restarts=n_restarts, init_particles=given,
-                first_restart=next_restart + i * stage.n_restarts + chunk * n_restarts)
-            clock.record(stage.degree, time.perf_counter() - chunk_began)
+                first_restart=next_restart + i * stage.n_restarts + chunk * n_restarts))
             ran.append((outcome, np.full(n_restarts, i), _certified(staged, outcome)))
         next_restart += len(variants) * stage.n_restarts
         by_degree.setdefault(stage.degree, []).extend(ran)
@@ -175,25 +175,36 @@ def escalate(problem: Problem, variants: list, constraint: str, *, n_particles: 
 
 
 class _ChunkClock:
-    """How long a chunk of restarts took at each degree: its first (compiling, unless the
-    program was cached) and its latest; a new degree is guessed from the last one's, scaled by
-    (degree + 1)^2."""
+    """How long chunks of restarts took at each degree, running and compiling apart
+    (``timing.compile_time``), and what a stage is expected to take: its chunks at the latest
+    run time of that degree, or at a new degree the last degree's scaled by (degree + 1)^2 (how
+    the certified check's work grows), plus the last degree's compiling scaled by
+    ((degree + 1) / (last + 1))^1.5 and at least ``COMPILE_FLOOR`` s per degree and method
+    (compiling time grows about so with the degree: ``benchmarks/RESULTS.md``, *Path degree
+    limit*)."""
 
-    def __init__(self):
-        self.first: dict[int, float] = {}
-        self.latest: dict[int, float] = {}
+    def __init__(self, n_methods: int):
+        self.n_methods = n_methods
+        self.run: dict[int, float] = {}  # degree -> the latest chunk's run time
+        self.compile: dict[int, float] = {}  # degree -> compiling at that degree, summed
 
-    def record(self, degree: int, seconds: float) -> None:
-        self.first.setdefault(degree, seconds)
-        self.latest[degree] = seconds
+    def timed(self, degree: int, call):
+        """``call()``, timed."""
+        began = time.perf_counter()
+        with timing.compile_time() as compiling:
+            result = call()
+        self.run[degree] = max(time.perf_counter() - began - compiling.seconds, 0.0)
+        self.compile[degree] = self.compile.get(degree, 0.0) + compiling.seconds
+        return result
 
     def expected(self, degree: int, n_chunks: int) -> float:
         """Seconds ``n_chunks`` chunks at ``degree`` are expected to take."""
-        if degree in self.latest:
-            return n_chunks * self.latest[degree]
-        last = max(self.latest)
-        scale = ((degree + 1) / (last + 1)) ** 2
-        return scale * (self.first[last] + (n_chunks - 1) * self.latest[last])
+        if degree in self.run:
+            return n_chunks * self.run[degree]
+        last = max(self.run)
+        ratio = (degree + 1) / (last + 1)
+        compiling = max(self.compile[last] * ratio**1.5, COMPILE_FLOOR * degree * self.n_methods)
+        return compiling + n_chunks * self.run[last] * ratio**2
 
 
 def _takes_seeds(variants) -> bool:
