@@ -212,13 +212,15 @@ def _takes_seeds(variants) -> bool:
 
 
 def _certified(problem: Problem, outcome: RestartOutcome) -> np.ndarray:
-    """Which restarts' best paths are proved free for every r: the search's own check when it
-    is certified, else ``certify`` of the feasible ones."""
+    """Which restarts' best paths are known proved free for every r: under the certified check
+    every feasible one (the search's own proofs); under the sampled check the fittest feasible
+    one, if ``certify`` proves it (one path: the program ``solve`` certifies its best with)."""
     feasible = outcome.feasible
     if problem.collision == "certified" or not feasible.any():
         return feasible
+    fittest = int(np.argmax(np.where(feasible, outcome.best_fitness, -np.inf)))
     proved = np.zeros_like(feasible)
-    proved[feasible] = np.asarray(certify(problem, outcome.best_x[feasible]).free)
+    proved[fittest] = bool(certify(problem, outcome.best_x[fittest]).free)
     return proved
 
 

@@ -16,11 +16,11 @@ from jaxarm.checks.evaluate import certify, collision_witness
 from jaxarm.checks.witness import clearance_along
 from jaxarm.choices import (DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS,
                             DEFAULT_TIME_LIMIT, MAX_DEGREE)
+from jaxarm.escalation import Stage, escalate
 from jaxarm.io.files import text_writer, write_or_return
 from jaxarm.model.problem import Problem
 from jaxarm.optim import evosax_adapter, pso
 from jaxarm.optim.methods import parse_method
-from jaxarm.escalation import Stage, escalate
 from jaxarm.optim.restarts import N_ITERS, N_PARTICLES, RestartOutcome
 
 
