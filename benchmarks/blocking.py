@@ -309,7 +309,7 @@ def free_paths_above(problem: Problem, threshold: float, low, high, *, step: flo
             x = x[above]
             found.append(x[np.asarray(fitness(problem, x)) > 0])
     if n_restarts:
-        result = solve(problem, n_restarts=n_restarts, seed=seed)
+        result = solve(problem, n_restarts=n_restarts, seed=seed, max_stages=1)
         free = result.restarts.feasible
         found.append(np.asarray(result.restarts.best_x, np.float64)[free])
     x = np.concatenate(found)

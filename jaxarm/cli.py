@@ -507,10 +507,14 @@ def _solve(args) -> None:
 
     if args.method is not None:  # checked before the scenario is loaded
         parse_method(args.method, args.constraint)
+        if args.improve and args.time_limit is None:
+            raise ValueError(f"--improve needs --time-limit with --method {args.method} (a "
+                             "named method runs once without one)")
     problem = _load(args)
     limits = _timing_limits(args, problem)
     from jaxarm import plot
     from jaxarm.io.runs import run_record
+    from jaxarm.escalation import at_degree
     from jaxarm.io.scenario_files import obstacle_names
     from jaxarm.search import solve
 
@@ -525,6 +529,7 @@ def _solve(args) -> None:
           f"{args.iters} iterations")
     names = obstacle_names(args.scenario) if result.witness is not None else None
     print(result.summary(flags=True, obstacle_names=names))
+    problem = at_degree(problem, result.degree)  # the degree the best path has
     if args.json:  # solve(problem, method, **settings) repeats it (method null: the default)
         record = json.dumps(run_record(problem, args.method, settings, result), indent=2,
                             allow_nan=False)

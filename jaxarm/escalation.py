@@ -54,7 +54,7 @@ class Stage(NamedTuple):
 
     index: int
     degree: int
-    n_restarts: int  # run, all methods (fewer than planned when the time ran out)
+    n_restarts: int  # run, all methods (fewer than planned when a chunk certified a path)
     seeded: bool
     escaped: int  # restarts whose best path is collision-free under the problem's check
     certified: bool  # one of them proved free for every r
@@ -106,7 +106,7 @@ class Escalation(NamedTuple):
     problem: Problem  # at the degree of the best path
     outcome: RestartOutcome  # every restart run at that degree
     variant: np.ndarray  # shape=(n_restarts,), int: which method ran each
-    n_restarts: int  # per method at that degree
+    n_restarts: tuple  # per method at that degree
     certified: np.ndarray  # shape=(n_restarts,), bool
     stages: tuple  # of ``Stage``
 
@@ -137,7 +137,7 @@ def escalate(problem: Problem, variants: list, constraint: str, *, n_particles: 
             break
         staged = at_degree(problem, stage.degree)
         given = init_particles if index == 0 else (
-            raise_degree(seeds[0], problem.n_joints, stage.degree)
+            raise_degree(seeds[0][:n_particles], problem.n_joints, stage.degree)
             if stage.seeded and _takes_seeds(variants) else None)
         ran = []
         for i, chunk in chunks:
@@ -170,7 +170,8 @@ def escalate(problem: Problem, variants: list, constraint: str, *, n_particles: 
     runs = by_degree[degree]
     outcome = RestartOutcome(*(np.concatenate(parts) for parts in zip(*(o for o, _, _ in runs))))
     return Escalation(at_degree(problem, degree), outcome, np.concatenate([v for _, v, _ in runs]),
-                      len(runs) * n_restarts // len(variants),
+                      tuple(np.bincount(np.concatenate([v for _, v, _ in runs]),
+                                        minlength=len(variants)).tolist()),
                       np.concatenate([c for _, _, c in runs]), tuple(stages))
 
 

@@ -26,7 +26,7 @@ from matplotlib.figure import Figure
 
 from jaxarm._compile.jit import jit
 from jaxarm._validate import positive_int
-from jaxarm.checks.evaluate import collision_witness, fitness
+from jaxarm.checks.evaluate import deepest_contact, fitness
 from jaxarm.checks.witness import clearance_along
 from jaxarm.model.arm import joint_positions
 from jaxarm.model.path_functions import joint_path
@@ -106,9 +106,10 @@ def _show_workspace(ax, problem: Problem) -> None:
 def plot_motion(problem: Problem, x, n_postures: int = 9, ax=None, title: str | None = None):
     """The arm at ``n_postures`` instants of the path ``x`` (shape (n_free,)) among obstacles.
 
-    A path that collides under the problem's check is drawn with where: the arm at the
-    witness instant in red, the obstacle it hits outlined in red, and crosses on the
-    end-effector's trace at the instants some link is inside an obstacle (or its margin).
+    A path that comes inside an obstacle (or its margin) at the drawn instants is drawn with
+    where: crosses on the end-effector's trace at those instants, and the arm at its deepest
+    contact (``evaluate.deepest_contact``, as ``Result.summary`` names it) and the obstacle
+    it hits, in red.
     """
     figure, ax = _axes(ax)
     draw_world(ax, problem.world)
@@ -141,7 +142,7 @@ def _mark_collision(ax, problem: Problem, x, r, trace) -> None:
         return
     ax.plot(trace[inside, 0], trace[inside, 1], "x", color="#d62728", ms=5, zorder=4,
             label="in collision")
-    witness = collision_witness(problem, _one_path(problem, x))
+    witness = deepest_contact(problem, _one_path(problem, x))
     if int(witness.obstacle) < 0:
         return
     posture = _positions(problem, x, np.array([float(witness.r)]))[0]
@@ -164,7 +165,7 @@ def plot_clearance(problem: Problem, x, n_points: int = 401, ax=None,
                    title: str | None = None):
     """Each link's exact distance to its nearest obstacle along the path ``x`` (shape
     (n_free,)) against r, with the margin (and 0) dashed: where a line dips below, that link
-    collides; the witness instant is marked when the problem's check finds one."""
+    collides; the deepest contact (``evaluate.deepest_contact``) is marked."""
     n_points = positive_int("n_points", n_points, minimum=2)
     figure, ax = _axes(ax, (5.5, 3.5))
     r = np.linspace(0.0, 1.0, n_points)
@@ -175,7 +176,7 @@ def plot_clearance(problem: Problem, x, n_points: int = 401, ax=None,
     if problem.margin:
         ax.axhline(problem.margin, color="#d62728", ls="--", lw=1.0,
                    label=f"margin {problem.margin:g} cm")
-    witness = collision_witness(problem, _one_path(problem, x))
+    witness = deepest_contact(problem, _one_path(problem, x))
     if int(witness.obstacle) >= 0:
         ax.plot(float(witness.r), float(witness.distance), "x", color="#d62728", ms=9, mew=2,
                 label=f"witness: link {int(witness.link) + 1}", zorder=4)

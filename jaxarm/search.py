@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 import pathlib
 import time
 from typing import Callable, NamedTuple
@@ -12,8 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm._validate import check_search, positive_int
-from jaxarm.checks.evaluate import certify, collision_witness
-from jaxarm.checks.witness import clearance_along
+from jaxarm.checks.evaluate import certify, deepest_contact
 from jaxarm.choices import (DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS,
                             DEFAULT_TIME_LIMIT, MAX_DEGREE)
 from jaxarm.escalation import Stage, escalate
@@ -124,7 +124,7 @@ class Result(NamedTuple):
     time_limit: float | None = None  # s, the search's (None: none)
     witness: tuple | None = None  # where the best path collides, when it does: (r, link
     #   (0-based), obstacle (index in ``World``'s order), distance (cm), the obstacle's name
-    #   in ``World``: "boxes[2]"), the deepest contact by exact distances (``_witness``)
+    #   in ``World``: "boxes[2]") (``evaluate.deepest_contact``)
 
     @property
     def best_x(self) -> np.ndarray:
@@ -218,9 +218,9 @@ class Result(NamedTuple):
         optional = {"degree", "stages", "time_limit", "witness"}
         fields = {name: data.get(name) if name in optional else data[name]
                   for name in cls._fields if name != "restarts"}
-        fields["stages"] = tuple(
-            Stage(**{**stage, "time_left": math.inf if stage["time_left"] is None
-                     else stage["time_left"]}) for stage in fields["stages"] or ())
+        fields["stages"] = tuple(  # to_dict wrote infinities as None
+            Stage(**{key: math.inf if value is None else value for key, value in stage.items()})
+            for stage in fields["stages"] or ())
         if fields["witness"] is not None:
             fields["witness"] = tuple(fields["witness"][key] for key in WITNESS_KEYS)
         config = fields["config"]
@@ -300,8 +300,8 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
       time_limit: seconds (compilation included) the search may go on while nothing is
         certified free; None: none when ``max_stages`` is given, else ``DEFAULT_TIME_LIMIT``
         with the default method and no escalation with a named one; ``math.inf``: the whole
-        plan. Stage 0 (the call as asked) always runs whole; a later stage starts a chunk
-        only when it is expected to fit.
+        plan. Stage 0 (the call as asked) always runs whole; a later stage only when it is
+        expected to end within the limit.
       max_stages: run at most this many stages (None: as many as the time allows); 1 is the
         call as asked, without escalation.
       improve: go on after a certified path is found, until the time or the plan runs out,
@@ -335,12 +335,16 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
     if refine:
         outcome = _refined(problem, outcome, every=refine == "all")
     best = outcome.best_restart()
+    if problem.collision == "sampled" and found.certified.any() and not refine:
+        # the fittest path certify proved, rather than a fitter one only the samples call free
+        best = int(np.argmax(np.where(found.certified, outcome.best_fitness, -np.inf)))
     feasible = bool(outcome.feasible[best])
     certified = feasible and (problem.collision == "certified"
                               or bool(certify(problem, outcome.best_x[best]).free))
     witness = None if feasible else _witness(problem, outcome.best_x[best])
     method_name = (variants[0].name if len(variants) == 1 else
-                   " + ".join(f"{variant.name} x {found.n_restarts}" for variant in variants))
+                   " + ".join(f"{variant.name} x {count}"
+                              for variant, count in zip(variants, found.n_restarts)))
     return Result(restarts=outcome, best_restart=best, certified=certified,
                   pso_best_fitness=pso_best, method=method_name,
                   config=variants[int(found.variant[best])].config,
@@ -371,34 +375,29 @@ def _stage_limits(method, time_limit, max_stages, improve, progress) -> tuple[fl
         time_limit = DEFAULT_TIME_LIMIT if method is None and max_stages is None else math.inf
         if method is not None and max_stages is None:
             max_stages = 1
-    elif isinstance(time_limit, bool) or not isinstance(time_limit, (int, float)) or not (
+    elif isinstance(time_limit, bool) or not isinstance(time_limit, numbers.Real) or not (
             time_limit > 0):
         raise ValueError(f"time_limit must be a positive number of seconds, got {time_limit!r}")
     if max_stages is not None:
         max_stages = positive_int("max_stages", max_stages)
     if not isinstance(improve, bool):
         raise ValueError(f"improve must be True or False, got {improve!r}")
+    if improve and max_stages == 1:
+        raise ValueError("improve=True needs more than one stage: give a named method a "
+                         "time_limit, or max_stages > 1")
     if not (progress is None or progress is False or callable(progress)):
         raise ValueError(f"progress must be a function, None or False, got {progress!r}")
     return float(time_limit), max_stages
 
 
 def _witness(problem: Problem, x) -> tuple | None:
-    """Where the path x collides (``Result.witness``): the instant where a link comes deepest
-    into an obstacle (or its margin) by exact distances at 4 instants per sample interval,
-    or where the problem's check finds it when those miss it (a contact thinner than that);
-    None where the check names no contact (a joint limit alone)."""
-    r = np.linspace(0.0, 1.0, 4 * (problem.n_samples - 1) + 1)
-    distance, obstacle = clearance_along(problem, x, r)
-    at, link = np.unravel_index(np.argmin(distance), distance.shape)
-    if distance[at, link] < problem.margin:
-        found = (float(r[at]), int(link), int(obstacle[at, link]), float(distance[at, link]))
-    else:  # a contact thinner than the instants' spacing: where the check found it
-        check = collision_witness(problem, x)
-        if int(check.obstacle) < 0:
-            return None
-        found = (float(check.r), int(check.link), int(check.obstacle), float(check.distance))
-    return found + (problem.world.obstacle_name(found[2]),)
+    """``Result.witness`` of the path x (``evaluate.deepest_contact``), or None where there is
+    no contact (a joint limit alone)."""
+    found = deepest_contact(problem, x)
+    if int(found.obstacle) < 0:
+        return None
+    return (float(found.r), int(found.link), int(found.obstacle), float(found.distance),
+            problem.world.obstacle_name(int(found.obstacle)))
 
 
 def _refined(problem, outcome: RestartOutcome, every: bool) -> RestartOutcome:

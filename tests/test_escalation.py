@@ -64,10 +64,19 @@ def test_nothing_free_escalates_stage_by_stage_and_says_what_ran(trapped):
 
 
 def test_stage_zero_alone_is_the_call_as_asked_and_a_record_repeats_the_stages(case2, trapped):
-    single = jaxarm.solve(case2, max_stages=1, progress=False, **TINY)
+    from jaxarm.choices import DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTARTS
+    from jaxarm.optim.methods import parse_method
+    from jaxarm.optim.restarts import run_restarts
+
     default = jaxarm.solve(case2, progress=False, **TINY)  # certified at stage 0
-    np.testing.assert_array_equal(single.best_x, default.best_x)
     assert len(default.stages) == 1 and default.certified
+    # the fixed search as it was: 8 restarts of each default method, numbered 0-7 and 8-15
+    by_hand = [run_restarts(case2, parse_method(name, DEFAULT_CONSTRAINT).config,
+                            DEFAULT_CONSTRAINT, seed=0, first_restart=i * DEFAULT_RESTARTS,
+                            n_restarts=DEFAULT_RESTARTS, **TINY)
+               for i, name in enumerate(DEFAULT_METHODS)]
+    np.testing.assert_array_equal(default.restarts.best_x,
+                                  by_hand[0].concatenate(by_hand[1]).best_x)
     from jaxarm.io.runs import run_record
 
     first = jaxarm.solve(trapped, max_stages=2, progress=False, **TINY)
@@ -94,6 +103,11 @@ def test_a_short_time_limit_stops_after_stage_zero(trapped, caplog):
     assert "a longer time limit (time_limit=0.002)" in result.summary()
 
 
+def test_seeds_fit_a_swarm_of_fewer_particles_than_the_seeds(trapped):
+    result = jaxarm.solve(trapped, max_stages=3, progress=False, n_particles=2, n_iters=2)
+    assert [stage.seeded for stage in result.stages] == [False, False, True]
+
+
 def test_a_named_method_runs_once_unless_given_a_time_limit(trapped):
     assert len(jaxarm.solve(trapped, "A", **TINY).stages) == 1
     result = jaxarm.solve(trapped, "A", time_limit=math.inf, max_stages=2, progress=False,
@@ -108,6 +122,17 @@ def test_a_named_method_runs_once_unless_given_a_time_limit(trapped):
 def test_bad_search_limits_name_the_field(case2, field, value):
     with pytest.raises(ValueError, match=field):
         jaxarm.solve(case2, **{field: value})
+    with pytest.raises(ValueError, match="improve=True needs more than one stage"):
+        jaxarm.solve(case2, "A", improve=True)  # a named method runs one stage
+
+
+def test_a_result_at_a_higher_degree_goes_with_the_problem_at_that_degree(trapped):
+    from jaxarm import plot
+
+    result = jaxarm.solve(trapped, max_stages=3, progress=False, n_particles=2, n_iters=2)
+    at = escalation.at_degree(trapped, result.degree)
+    assert at.n_free == result.best_x.shape[0]
+    assert plot.plot_motion(at, result.best_x) is not None
 
 
 def test_the_command_line_reports_stages_and_where_the_best_path_collides(tmp_path, trapped):
@@ -123,6 +148,13 @@ def test_the_command_line_reports_stages_and_where_the_best_path_collides(tmp_pa
     assert "inside obstacles[" in run.stdout and "boxes[" not in run.stdout
     saved = jaxarm.load_run(tmp_path / "run.json")
     assert saved.settings["max_stages"] == 1 and saved.result.witness is not None
+    # a best path found at a higher degree is drawn with the problem at that degree
+    climbed = subprocess.run(
+        [sys.executable, "-m", "jaxarm", "solve", str(scene), "--time-limit", "20",
+         "--particles", "2", "--iters", "2", "--plot", str(tmp_path / "motion.png"),
+         "--quiet"], capture_output=True, text=True, timeout=600)
+    assert climbed.returncode == 0, climbed.stderr
+    assert (tmp_path / "motion.png").stat().st_size > 0
     bad = subprocess.run([sys.executable, "-m", "jaxarm", "solve", "paper-case-2",
                           "--time-limit", "0"], capture_output=True, text=True, timeout=600)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "--time-limit" in bad.stderr

@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxarm._compile.jit import jit
 from jaxarm._compile.padding import on_padded_rows
@@ -298,7 +299,8 @@ def certify(problem: Problem, x) -> Certificate:
 
 def collision_witness(problem: Problem, x) -> witness_lib.Witness:
     """Where paths collide under the problem's check: the instant of the deepest tested contact
-    (sampled check: the sample deepest inside the margin; certified: ``certify``'s
+    (sampled check: the sample where the links are deepest inside the obstacles' margins,
+    summed over links and obstacles as its violation is; certified: ``certify``'s
     ``witness_r``), and the link and obstacle nearest each other there.
 
     Args:
@@ -323,3 +325,19 @@ def collision_witness(problem: Problem, x) -> witness_lib.Witness:
         r = on_padded_rows(functools.partial(witness_lib.deepest_sample_rows, problem.spec,
                                              problem.arrays), x)
     return witness_lib.contacts(problem, x, r)
+
+
+def deepest_contact(problem: Problem, x) -> witness_lib.Witness:
+    """Where one path (shape (n_free,)) comes deepest into an obstacle or its margin, by exact
+    distances at 4 instants per sample interval (``witness.clearance_along``), or, where
+    those find no contact (one thinner than their spacing), ``collision_witness``'s: what a
+    summary or a figure shows of a colliding path, without compiling a check when the path's
+    contact is wide enough to see. NaN / -1 where neither finds one."""
+    r = np.linspace(0.0, 1.0, 4 * (problem.n_samples - 1) + 1)
+    distance, obstacle = witness_lib.clearance_along(problem, x, r)
+    at, link = np.unravel_index(np.argmin(distance), distance.shape)
+    if distance[at, link] < problem.margin:
+        return witness_lib.Witness(r=float(r[at]), link=int(link),
+                                   obstacle=int(obstacle[at, link]),
+                                   distance=float(distance[at, link]))
+    return collision_witness(problem, x)

@@ -64,7 +64,9 @@ def link_distances(lengths, world, theta):
             - circles[:, 2], world_lib.polygon_separation_xy(*link, world, vertex_axis=True)])
             for link in link_endpoints(lengths, list(angles))])
         separation = jnp.where(valid[None], separation, jnp.inf)
-        return separation.min(axis=1), jnp.argmin(separation, axis=1).astype(jnp.int32)
+        nearest = separation.min(axis=1)  # inf: only padding slots
+        return nearest, jnp.where(jnp.isinf(nearest), -1,
+                                  jnp.argmin(separation, axis=1)).astype(jnp.int32)
 
     return jax.lax.map(one, theta, batch_size=POSTURES_AT_ONCE)
 

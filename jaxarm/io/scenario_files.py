@@ -132,10 +132,10 @@ def obstacle_names(name_or_path: str | pathlib.Path) -> dict[str, str]:
     """Each obstacle's name in ``World`` (``"boxes[0]"``) -> its name in the scenario file
     (``"obstacles[3]"``, a map's boxes ``"obstacles[3] (box 12 of room.yaml)"``), for
     messages about a problem ``load_scenario(name_or_path)`` loaded."""
-    text, _, folder = _read(name_or_path)
     try:
+        text, _, folder = _read(name_or_path)
         return _obstacles(tomllib.loads(text).get("obstacles", []), folder)[1]
-    except (ValueError, TypeError):  # the file changed since it loaded: World's names
+    except (ValueError, TypeError):  # the file changed or went since it loaded: World's names
         return {}
 
 
