@@ -334,10 +334,7 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
     pso_best = float(outcome.best_fitness[outcome.best_restart()])
     if refine:
         outcome = _refined(problem, outcome, every=refine == "all")
-    best = outcome.best_restart()
-    if problem.collision == "sampled" and found.certified.any() and not refine:
-        # the fittest path certify proved, rather than a fitter one only the samples call free
-        best = int(np.argmax(np.where(found.certified, outcome.best_fitness, -np.inf)))
+    best = _best(problem, outcome, found.certified, refine)
     feasible = bool(outcome.feasible[best])
     certified = feasible and (problem.collision == "certified"
                               or bool(certify(problem, outcome.best_x[best]).free))
@@ -351,6 +348,15 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
                   constraint=constraint, collision=problem.collision, degree=problem.degree,
                   seed=int(seed), seconds=time.perf_counter() - began, stages=found.stages,
                   time_limit=None if math.isinf(limit) else limit, witness=witness)
+
+
+def _best(problem: Problem, outcome: RestartOutcome, certified, refined) -> int:
+    """The restart ``solve`` returns: the best (``best_restart``), except under the sampled
+    check where a path is known certified (and not refined since): the fittest such, rather
+    than a fitter one only the samples call free."""
+    if problem.collision == "sampled" and certified.any() and not refined:
+        return int(np.argmax(np.where(certified, outcome.best_fitness, -np.inf)))
+    return outcome.best_restart()
 
 
 def _variants(method, constraint, n_restarts, init_particles) -> tuple[list, int]:
