@@ -97,3 +97,16 @@ def test_free_paths_have_no_witness_and_batches_keep_their_shape(case2):
     assert (np.asarray(certificate.witness_obstacle)[:, 1] == 0).all()
     witness = jaxarm.collision_witness(case2, x[1])
     assert witness.r.shape == () and int(witness.link) == 1 and float(witness.distance) < 0
+
+
+def test_plot_clearance_draws_each_links_distance_and_the_deepest_contact(case2):
+    from jaxarm import plot
+
+    problem = case2.replace(margin=0.5)
+    figure = plot.plot_clearance(problem, [0.0, 0.0, 0.0], n_points=101)
+    ax = figure.axes[0]
+    labels = [line.get_label() for line in ax.get_lines()]
+    assert [f"link {k}" for k in (1, 2, 3)] == labels[:3]
+    assert "margin 0.5 cm" in labels and "witness: link 2" in labels
+    distances = ax.get_lines()[1].get_ydata()
+    assert distances.shape == (101,) and distances.min() < 0  # link 2 goes inside

@@ -289,12 +289,17 @@ def certify(problem: Problem, x) -> Certificate:
       >>> bool(certificate.free), bool(certificate.colliding)
       (True, False)
     """
+    return _certified_with_witness(problem, x)[0]
+
+
+def _certified_with_witness(problem: Problem, x) -> tuple[Certificate, witness_lib.Witness]:
+    """``certify`` of x, and its witness with the distance there (``collision_witness``)."""
     spec = problem.spec._replace(collision="certified")
     x = as_params(problem, x)
     certificate = on_padded_rows(functools.partial(_evaluate_and_certify, spec, problem.arrays),
                                  x)[1]
     found = witness_lib.contacts(problem, x, certificate.witness_r)
-    return certificate._replace(witness_link=found.link, witness_obstacle=found.obstacle)
+    return certificate._replace(witness_link=found.link, witness_obstacle=found.obstacle), found
 
 
 def collision_witness(problem: Problem, x) -> witness_lib.Witness:
@@ -318,12 +323,11 @@ def collision_witness(problem: Problem, x) -> witness_lib.Witness:
       >>> int(witness.link), int(witness.obstacle), bool(witness.distance < 0)
       (1, 0, True)
     """
-    x = as_params(problem, x)
     if problem.collision == "certified":
-        r = certify(problem, x).witness_r
-    else:
-        r = on_padded_rows(functools.partial(witness_lib.deepest_sample_rows, problem.spec,
-                                             problem.arrays), x)
+        return _certified_with_witness(problem, x)[1]
+    x = as_params(problem, x)
+    r = on_padded_rows(functools.partial(witness_lib.deepest_sample_rows, problem.spec,
+                                         problem.arrays), x)
     return witness_lib.contacts(problem, x, r)
 
 
