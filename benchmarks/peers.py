@@ -33,7 +33,7 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy.interpolate import CubicSpline
+from scipy.interpolate import CubicSpline, make_interp_spline
 
 import jaxarm
 from jaxarm.checks.evaluate import evaluate
@@ -52,12 +52,19 @@ def path_metrics(problem, x):
     return length, np.abs(jerk).max(axis=(-2, -1))
 
 
-def waypoint_metrics(waypoints):
-    """Joint-space length and max jerk of a waypoint path, splined over r in [0, 1]."""
+def waypoint_metrics(waypoints, rest_to_rest: bool = False):
+    """Joint-space length and max jerk of a waypoint path, splined over r in [0, 1] in arc
+    length: a clamped cubic spline (zero velocity at the ends; the acceleration jumps there),
+    or with ``rest_to_rest`` a quintic one with zero velocity and acceleration at both ends, as
+    jaxarm's paths have."""
     steps = np.linalg.norm(np.diff(waypoints, axis=0), axis=1)
     length = steps.sum()
     r = np.concatenate([[0.0], np.cumsum(steps)]) / max(length, 1e-12)
-    spline = CubicSpline(r, waypoints, bc_type="clamped")
+    if rest_to_rest:
+        at_rest = [(1, np.zeros(waypoints.shape[1])), (2, np.zeros(waypoints.shape[1]))]
+        spline = make_interp_spline(r, waypoints, k=5, bc_type=(at_rest, at_rest))
+    else:
+        spline = CubicSpline(r, waypoints, bc_type="clamped")
     jerk = spline(np.linspace(0.0, 1.0, 2001), 3)
     return length, np.abs(jerk).max()
 
@@ -241,8 +248,10 @@ def run_pycma(problem, n_restarts):
 
 
 def posture_checker(problem):
-    """A fast NumPy check of one posture against the problem's obstacles (open sets)."""
+    """A fast NumPy check of one posture against the problem's obstacles, kept ``margin`` away
+    (polygons by separating axes: a posture within the margin of a corner may be refused)."""
     arrays = problem.arrays
+    margin = problem.margin
     world = arrays.world
     circles = world.circles[world.circle_valid]
     polygons = [(world.normals[p][world.edge_valid[p]], world.extent_low[p][world.edge_valid[p]],
@@ -259,7 +268,7 @@ def posture_checker(problem):
             t = np.clip(((cx - starts[:, 0]) * d[:, 0] + (cy - starts[:, 1]) * d[:, 1])
                         / (d**2).sum(1), 0, 1)
             if np.any(np.hypot(starts[:, 0] + t * d[:, 0] - cx,
-                               starts[:, 1] + t * d[:, 1] - cy) < radius):
+                               starts[:, 1] + t * d[:, 1] - cy) < radius + margin):
                 return False
         normal = np.stack([-d[:, 1], d[:, 0]], -1) / np.linalg.norm(d, axis=1, keepdims=True)
         offset = (normal * starts).sum(1)
@@ -268,14 +277,20 @@ def posture_checker(problem):
             gap = np.maximum(np.minimum(a, b) - high, low - np.maximum(a, b)).max(1)
             along = normal @ vertices.T
             gap = np.maximum(gap, np.maximum(along.min(1) - offset, offset - along.max(1)))
-            if np.any(gap < 0):
+            if np.any(gap < margin):
                 return False
         return True
 
     return free
 
 
-def run_ompl(problem, n_restarts, budget=1.0):
+def rrtconnect(problem, budget: float, resolution: float = 0.002):
+    """One OMPL RRTConnect run in joint space (each joint within pi of its start and goal
+    angles; motions checked every ``resolution`` of the space's extent), simplified when solved.
+
+    Returns:
+      (solved, seconds to the first solution, seconds in all, waypoints (n, n_joints) or None).
+    """
     from ompl import base as ob
     from ompl import geometric as og
     from ompl import util as ou
@@ -290,28 +305,34 @@ def run_ompl(problem, n_restarts, budget=1.0):
         bounds.setHigh(j, max(start[j], goal[j]) + np.pi)
     space.setBounds(bounds)
     free = posture_checker(problem)
+    setup = og.SimpleSetup(space)
+    setup.setStateValidityChecker(lambda s: free(np.array([s[j] for j in range(n)])))
+    setup.getSpaceInformation().setStateValidityCheckingResolution(resolution)
+    s, g = space.allocState(), space.allocState()
+    for j in range(n):
+        s[j], g[j] = float(start[j]), float(goal[j])
+    setup.setStartAndGoalStates(s, g)
+    setup.setPlanner(og.RRTConnect(setup.getSpaceInformation()))
+    began = time.perf_counter()
+    solved = setup.solve(budget)
+    first = time.perf_counter() - began
+    ok = bool(solved) and setup.haveExactSolutionPath()
+    if not ok:
+        return False, first, time.perf_counter() - began, None
+    setup.simplifySolution()
+    found = setup.getSolutionPath()
+    waypoints = np.array([[found.getState(i)[j] for j in range(n)]
+                          for i in range(found.getStateCount())])
+    return True, first, time.perf_counter() - began, waypoints
+
+
+def run_ompl(problem, n_restarts, budget=1.0):
     successes, seconds, firsts, lengths, jerks = [], [], [], [], []
     for _ in range(n_restarts):  # one RNG stream, seeded once in main(): runs are repeatable
-        setup = og.SimpleSetup(space)
-        setup.setStateValidityChecker(lambda s: free(np.array([s[j] for j in range(n)])))
-        setup.getSpaceInformation().setStateValidityCheckingResolution(0.002)
-        s, g = space.allocState(), space.allocState()
-        for j in range(n):
-            s[j], g[j] = float(start[j]), float(goal[j])
-        setup.setStartAndGoalStates(s, g)
-        setup.setPlanner(og.RRTConnect(setup.getSpaceInformation()))
-        began = time.perf_counter()
-        solved = setup.solve(budget)
-        first = time.perf_counter() - began
-        ok = bool(solved) and setup.haveExactSolutionPath()
-        if ok:
-            setup.simplifySolution()
-        seconds.append(time.perf_counter() - began)
+        ok, first, elapsed, waypoints = rrtconnect(problem, budget)
+        seconds.append(elapsed)
         successes.append(ok)
         if ok:
-            found = setup.getSolutionPath()
-            waypoints = np.array([[found.getState(i)[j] for j in range(n)]
-                                  for i in range(found.getStateCount())])
             firsts.append(first)
             length, jerk = waypoint_metrics(waypoints)
             lengths.append(length)

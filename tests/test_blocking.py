@@ -1,10 +1,6 @@
 """benchmarks/blocking.py: circles that block the paths better than the paper's, checked against
 shapely and against the fitness and collision checks they bound."""
 
-import importlib.util
-import pathlib
-import sys
-
 import numpy as np
 import pytest
 
@@ -15,18 +11,9 @@ from jaxarm.paper.published import a6_array
 from jaxarm.testing import dense_clearance, link_segments
 
 shapely = pytest.importorskip("shapely")
+import benchmark_modules  # noqa: E402  (tests/)
 
-
-def _benchmark_module(name: str):
-    """``benchmarks/<name>.py``, imported by its path: benchmarks/ is not a package."""
-    spec = importlib.util.spec_from_file_location(
-        name, pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py")
-    module = sys.modules[name] = importlib.util.module_from_spec(spec)  # as an import would
-    spec.loader.exec_module(module)
-    return module
-
-
-blocking = _benchmark_module("blocking")
+blocking = benchmark_modules.load("blocking")
 
 # paper-case-1's three circles before the better paths were blocked
 THREE_CIRCLES = ((46.0, 4.0, 10.44), (8.0, 2.0, 2.4), (32.0, 18.0, 2.79))

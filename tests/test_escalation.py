@@ -158,3 +158,45 @@ def test_the_command_line_reports_stages_and_where_the_best_path_collides(tmp_pa
     bad = subprocess.run([sys.executable, "-m", "jaxarm", "solve", "paper-case-2",
                           "--time-limit", "0"], capture_output=True, text=True, timeout=600)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "--time-limit" in bad.stderr
+
+
+def test_the_s_bend_has_no_free_path_at_degree_6_and_one_at_degree_7():
+    """benchmarks/default_bench.py's S-bend: at degree 6 the elbow (0 at both ends) keeps one
+    sign, and with either sign the free postures (shapely, on a grid over the base's range)
+    leave start and goal apart; the S path of degree 7 is certified and clear by shapely."""
+    shapely = pytest.importorskip("shapely")
+    from scipy import ndimage
+
+    from benchmark_modules import load
+    from jaxarm.model import path
+    from jaxarm.testing import dense_clearance
+
+    bench = load("default_bench")
+    problem = bench.s_bend()
+    g6 = np.asarray(path.basis_values(6, np.linspace(0.0, 1.0, 101)))[:, 1]
+    assert np.all(g6 <= 0.0)  # so the elbow's a6 g6(r) never changes sign
+    low, high = problem.joint_limits[0]
+    base = np.linspace(low, high, 161)
+    elbow = np.linspace(-np.pi, np.pi, 181)
+    b, e = np.meshgrid(base, elbow, indexing="ij")
+    length_1, length_2 = problem.arm.lengths
+    elbow_at = length_1 * np.stack([np.cos(b), np.sin(b)], -1)
+    tip = elbow_at + length_2 * np.stack([np.cos(b + e), np.sin(b + e)], -1)
+    links = [shapely.linestrings(np.stack([np.zeros_like(elbow_at), elbow_at], -2)),
+             shapely.linestrings(np.stack([elbow_at, tip], -2))]
+    free = np.ones(b.shape, bool)
+    for (x, y, radius) in problem.world.circles:
+        disc = shapely.Point(x, y).buffer(radius, quad_segs=64)
+        for link in links:
+            free &= ~shapely.intersects(link, disc)
+    start, goal = (np.argmin(abs(base - problem.start[0])), 90), (np.argmin(abs(base - np.pi)), 90)
+    for one_sign in (e >= 0.0, e <= 0.0):
+        labels, _ = ndimage.label(free & one_sign)
+        assert labels[start] and labels[goal] and labels[start] != labels[goal]
+    labels, _ = ndimage.label(free)
+    assert labels[start] == labels[goal]  # the grid's postures do connect them
+
+    seven = escalation.at_degree(problem, 7)
+    x = np.array([bench.S_BEND_PATH])
+    assert jaxarm.certify(seven, x).free[0]
+    assert dense_clearance(seven, x, 20001).min() > problem.margin
