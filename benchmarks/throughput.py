@@ -6,6 +6,11 @@ to agree. Also the work per path (arithmetic, comparisons and selects in the jax
 unrolled) against the machine's measured float32 matmul peak.
 
     .venv/bin/python benchmarks/throughput.py [--max-batch 1000000] [--repeats 7]
+
+``--evaluate`` instead times ``jaxarm.evaluate`` (fitness, violation and distance in one pass)
+beside ``jaxarm.fitness`` alone and the three public functions called one after the other, on
+20,000 random paths of paper-case-1, sampled and certified, called from the host and inside a
+caller's ``jax.jit``, in turns in the same run.
 """
 
 from __future__ import annotations
@@ -127,13 +132,42 @@ def matmul_peak(repeats: int) -> float:
     return 2 * 4096**3 / seconds / 1e9
 
 
+def evaluate_section(repeats: int) -> None:
+    """The ``--evaluate`` table (module docstring)."""
+    certified = jaxarm.load_scenario("paper-case-1")
+    x = jnp.asarray(np.random.default_rng(0).uniform(-100, 100, (20_000, 3)), jnp.float32)
+    print(f"jax {jax.__version__} ({jax.default_backend()}), 20,000 paths of paper-case-1, "
+          f"median of {repeats} calls in turns, warm\n")
+    print("| check | called | fitness alone (s) | evaluate (s) | fitness + violation + "
+          "travelling_distance (s) | evaluate / fitness |")
+    print("|---|---|---|---|---|---|")
+    for problem in (certified.replace(collision="sampled"), certified):
+        three = (jaxarm.fitness, jaxarm.violation, jaxarm.travelling_distance)
+        for called in ("from the host", "inside jax.jit"):
+            wrap = jax.jit if called == "inside jax.jit" else (lambda f: f)
+            fitness = wrap(lambda x, p=problem: jaxarm.fitness(p, x))
+            evaluation = wrap(lambda x, p=problem: jaxarm.evaluate(p, x))
+            separately = wrap(lambda x, p=problem: [f(p, x) for f in three])
+            seconds = interleaved_seconds({
+                "fitness": lambda: jax.block_until_ready(fitness(x)),
+                "evaluate": lambda: jax.block_until_ready(evaluation(x)),
+                "three": lambda: jax.block_until_ready(separately(x))}, repeats)
+            print(f"| {problem.collision} | {called} | {seconds['fitness']:.4f} | "
+                  f"{seconds['evaluate']:.4f} | {seconds['three']:.4f} | "
+                  f"{seconds['evaluate'] / seconds['fitness']:.2f} |", flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--max-batch", type=int, default=1_000_000)
     parser.add_argument("--numpy-max-batch", type=int, default=100_000)
     parser.add_argument("--certified-max-batch", type=int, default=100_000)
     parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--evaluate", action="store_true")
     args = parser.parse_args()
+    if args.evaluate:
+        evaluate_section(args.repeats)
+        return
 
     certified = jaxarm.load_scenario("paper-case-1")  # certified: the default
     problem = certified.replace(collision="sampled")

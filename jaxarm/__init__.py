@@ -42,6 +42,7 @@ _EXPORTS = {
     "CONSTRAINTS": "jaxarm.choices",
     "Certificate": "jaxarm.checks.evaluate",
     "Evaluation": "jaxarm.checks.evaluate",
+    "evaluate": "jaxarm.checks.evaluate",
     "Problem": "jaxarm.model.problem",
     "certify": "jaxarm.checks.evaluate",
     "coefficients": "jaxarm.model.path_functions",
@@ -56,6 +57,7 @@ _EXPORTS = {
     "raise_degree": "jaxarm.model.path",
     "FeasibleFraction": "jaxarm.feasible",
     "feasible_fraction": "jaxarm.feasible",
+    "OptimizerProtocol": "jaxarm.optim.custom",
     "PRESETS": "jaxarm.optim.pso",
     "PSOConfig": "jaxarm.optim.pso",
     "ScenarioError": "jaxarm.io.scenario_files",
@@ -80,7 +82,7 @@ _EXPORTS = {
     "TrajectoryPoint": "jaxarm.trajectory",
     "min_duration": "jaxarm.trajectory",
 }
-_RENAMED = {"available_scenarios": "available"}
+_RENAMED = {"available_scenarios": "available", "evaluate": "evaluate_paths"}
 
 __all__ = sorted(_EXPORTS)
 

@@ -33,6 +33,7 @@ from jaxarm.choices import MAX_DEGREE
 from jaxarm.model.path import raise_degree
 from jaxarm.model.problem import Problem
 from jaxarm.optim import evosax_adapter
+from jaxarm.optim.custom import CustomConfig
 from jaxarm.optim.restarts import RestartOutcome, run_restarts
 
 LOGGER = logging.getLogger("jaxarm.search")
@@ -209,7 +210,8 @@ class _ChunkClock:
 
 
 def _takes_seeds(variants) -> bool:
-    return not any(isinstance(v.config, evosax_adapter.StrategyConfig) for v in variants)
+    return not any(isinstance(v.config, (evosax_adapter.StrategyConfig, CustomConfig))
+                   for v in variants)
 
 
 def _certified(problem: Problem, outcome: RestartOutcome) -> np.ndarray:

@@ -20,7 +20,8 @@ from jaxarm.escalation import Stage, escalate
 from jaxarm.io.files import text_writer, write_or_return
 from jaxarm.model.problem import Problem
 from jaxarm.optim import evosax_adapter, pso
-from jaxarm.optim.methods import parse_method
+from jaxarm.optim.custom import CustomConfig, RecordedOptimizer
+from jaxarm.optim.methods import parse_method, swarm_size
 from jaxarm.optim.restarts import N_ITERS, N_PARTICLES, RestartOutcome
 
 
@@ -225,6 +226,7 @@ class Result(NamedTuple):
             fields["witness"] = tuple(fields["witness"][key] for key in WITNESS_KEYS)
         config = fields["config"]
         fields["config"] = (evosax_adapter.StrategyConfig(**config) if "strategy" in config
+                            else RecordedOptimizer(**config) if "optimizer" in config
                             else pso.PSOConfig(**config))
         return cls(restarts=restarts, **fields)
 
@@ -250,8 +252,7 @@ def _plain(array) -> list:
     return array.tolist()
 
 
-def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
-          n_particles: int = N_PARTICLES, n_iters: int = N_ITERS, n_restarts: int | None = None,
+def solve(problem: Problem, method=None, *, n_particles: int | None = None, n_iters: int = N_ITERS, n_restarts: int | None = None,
           seed: int = 0, constraint: str | None = None, init_particles=None,
           refine: bool | str = False, time_limit: float | None = None,
           max_stages: int | None = None, improve: bool = False,
@@ -281,8 +282,10 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
       method: a method name (``jaxarm.optim.methods``): "A", "B", "C" (the paper's Table 2
         presets), "A-ring", "A-ring[inertia_end=0.4]" (fields changed in brackets), an
         evosax strategy "evosax:CMA_ES" (optional dependency), each optionally followed by
-        ":<constraint>" ("A:feasibility"); or a ``PSOConfig``; None: the default above.
-      n_particles: swarm size (paper: 20).
+        ":<constraint>" ("A:feasibility"); or a ``PSOConfig``; or your own optimiser
+        (``jaxarm.optim.custom``: an object with ``label``, ``population``, ``init``, ``ask``,
+        ``tell``); None: the default above.
+      n_particles: swarm size (paper: 20); None: your optimiser's population, else 20.
       n_iters: PSO updates (paper: 100); iteration 0 is the initial swarm.
       n_restarts: independent swarms (default: 8 per default method, 1 with a named one).
         Restarts are numbered across the default's methods: the first method's are 0 ..
@@ -321,6 +324,7 @@ def solve(problem: Problem, method: str | pso.PSOConfig | None = None, *,
     began = time.perf_counter()
     variants, n_restarts = _variants(method, constraint, n_restarts, init_particles)
     constraint = variants[0].constraint
+    n_particles = swarm_size(variants, n_particles, N_PARTICLES)
     check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint,
                  restarts_at_once=n_restarts)
     if refine not in (False, True, "all"):
@@ -368,7 +372,7 @@ def _variants(method, constraint, n_restarts, init_particles) -> tuple[list, int
     else:
         variants = [parse_method(method, constraint)]
         n_restarts = 1 if n_restarts is None else n_restarts
-    if (isinstance(variants[0].config, evosax_adapter.StrategyConfig)
+    if (isinstance(variants[0].config, (evosax_adapter.StrategyConfig, CustomConfig))
             and init_particles is not None):
         raise ValueError(f"init_particles: {variants[0].name} starts from its own "
                          "population; give init_particles to a PSO method")

@@ -24,7 +24,7 @@ from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import fitness
 from jaxarm.io.files import text_writer, write_or_return
 from jaxarm.model.problem import Problem
-from jaxarm.optim.methods import Variant, parse_methods
+from jaxarm.optim.methods import Variant, parse_methods, swarm_size
 from jaxarm.optim.restarts import (
     N_ITERS,
     N_PARTICLES,
@@ -253,7 +253,7 @@ CHUNK_SIZE = 500  # seeds per compiled call of ``escape_study`` unless told
 
 
 def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_restarts: int = 500,
-                 n_iters: int = N_ITERS, n_particles: int = N_PARTICLES, constraint: str = "death",
+                 n_iters: int = N_ITERS, n_particles: int | None = None, constraint: str = "death",
                  seed: int = 0, chunk_size: int = CHUNK_SIZE,
                  progress: bool | None = None) -> Study:
     """How often each method escapes zero fitness, over ``n_restarts`` independent seeds.
@@ -261,11 +261,12 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
     Args:
       problem: the problem.
       methods: entries "A", "B", "C", "A:feasibility" (method:constraint),
-        "A-ring[inertia_end=0.4]:feasibility" (``jaxarm.optim.methods``' names), ``PSOConfig``s
-        or ``Variant``s (``methods.parse_methods``); labels must be unique.
+        "A-ring[inertia_end=0.4]:feasibility" (``jaxarm.optim.methods``' names), ``PSOConfig``s,
+        your own optimisers (``jaxarm.optim.custom``) or ``Variant``s
+        (``methods.parse_methods``); labels must be unique.
       n_restarts: seeds (restarts) per method; the same restart indices for every method.
       n_iters: PSO iterations (paper: 100).
-      n_particles: swarm size (paper: 20).
+      n_particles: swarm size (paper: 20); None: your optimisers' population, else 20.
       constraint: the constraint rule for entries that do not name one.
       seed: base seed; seed i of the study is restart i of ``solve(problem, seed=seed)``.
       chunk_size: at most this many restarts per compiled call; the restarts are split into
@@ -284,6 +285,7 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
       [('A', 4), ('B', 4)]
     """
     variants = parse_methods(methods, constraint)
+    n_particles = swarm_size(variants, n_particles, N_PARTICLES)
     n_restarts = positive_int("n_restarts", n_restarts)
     chunk_size = positive_int("chunk_size", chunk_size)
     check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint,

@@ -46,7 +46,7 @@ def test_fitness_is_inverse_distance_when_free_and_zero_when_colliding(case2, rn
     x = rng.uniform(-200, 200, (2000, 3))
     fitness = np.asarray(jaxarm.fitness(case2, x))
     distance = np.asarray(jaxarm.travelling_distance(case2, x))
-    np.testing.assert_array_equal(distance, jaxarm.checks.evaluate._evaluated(case2, x).distance)
+    np.testing.assert_array_equal(distance, jaxarm.evaluate(case2, x).distance)
     programs = jaxarm.checks.evaluate._evaluate_and_certify.programs_made()
     jaxarm.travelling_distance(case2.replace(n_samples=41), x)  # runs no collision check
     assert jaxarm.checks.evaluate._evaluate_and_certify.programs_made() == programs
@@ -102,9 +102,9 @@ def test_jit_equals_no_jit(case2, rng, mode):
 @given(st.lists(st.floats(-200, 200), min_size=3, max_size=3))
 def test_float32_agrees_with_float64(x):
     problem = jaxarm.load_scenario("paper-case-2")
-    low = np.asarray(jaxarm.checks.evaluate._evaluated(problem, jnp.asarray(x, jnp.float32)))
+    low = np.asarray(jaxarm.evaluate(problem, jnp.asarray(x, jnp.float32)))
     with jax.enable_x64(True):
-        high = np.asarray(jaxarm.checks.evaluate._evaluated(problem, jnp.asarray(x, jnp.float64)))
+        high = np.asarray(jaxarm.evaluate(problem, jnp.asarray(x, jnp.float64)))
     np.testing.assert_allclose(low[2], high[2], rtol=1e-5)  # distance
     # Collision verdicts can only differ within rounding of the boundary.
     if (low[1] > 0) != (high[1] > 0):
@@ -331,3 +331,22 @@ def test_public_functions_take_any_sequence_of_numbers(case2, form):
     np.testing.assert_allclose(trajectory.at(form([0.0, 1.0])).position,
                                jaxarm.Trajectory(case2, reference, 2.0).at(
                                    np.array([0.0, 1.0])).position, rtol=1e-6)
+
+
+@pytest.mark.parametrize("mode", ["sampled", "certified"])
+def test_evaluate_is_fitness_violation_and_distance_in_one_pass(case2, rng, mode):
+    problem = case2.replace(collision=mode)
+    x = rng.uniform(-200, 200, (2, 40, 3)).astype(np.float32)
+    x[:, :20] = np.float32([66.7388, -28.1028, -9.8855]) + rng.normal(0, 1, (2, 20, 3))
+    evaluation = jaxarm.evaluate(problem, x)
+    assert isinstance(evaluation, jaxarm.Evaluation)
+    np.testing.assert_array_equal(evaluation.fitness, jaxarm.fitness(problem, x))
+    np.testing.assert_array_equal(evaluation.violation, jaxarm.violation(problem, x))
+    np.testing.assert_array_equal(evaluation.distance, jaxarm.travelling_distance(problem, x))
+    assert 0 < np.sum(evaluation.violation > 0) < 80  # both kinds of path
+    # inside a user's jit and vmap (an optimiser's loop over restarts): the same bits
+    inside = jax.jit(jax.vmap(lambda rows: jaxarm.evaluate(problem, rows)))(x)
+    for a, b in zip(evaluation, inside):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    with pytest.raises(ValueError, match=r"x must have shape \(\.\.\., 3\)"):
+        jaxarm.evaluate(problem, np.zeros((4, 5)))

@@ -29,7 +29,7 @@ from jaxarm.model.problem import Problem, ProblemArrays, ProblemSpec, as_params
 
 
 class Evaluation(NamedTuple):
-    """Everything the optimizer needs about a batch of paths."""
+    """Everything an optimiser needs about a batch of paths (``jaxarm.evaluate``)."""
 
     fitness: jax.Array  # shape=(...,), paper eq. 17: 0 on collision, else 1 / distance
     violation: jax.Array  # shape=(...,), >= 0, 0 iff collision-free
@@ -143,12 +143,11 @@ def limit_rows(spec: ProblemSpec, arrays: ProblemArrays, rows) -> limits_lib.Lim
 
 
 @functools.cache
-def vmapped_evaluate(spec: ProblemSpec):
-    """``evaluate`` for one spec, as a function of ``(arrays, x, request=None)`` (``request``: a
-    ``ProofRequest`` with fields of shape ``x.shape[:-1]``; None: every path proved in full)
-    whose ``jax.vmap`` over x folds the mapped axis into the batch (one long kernel call)
-    instead of adding a short outer axis to every array in it. Not reverse-differentiable
-    (``jax.custom_batching``).
+def folded_evaluate(spec: ProblemSpec):
+    """``evaluate`` for one spec, as a function of ``(arrays, x, request)`` (``request`` None or
+    a ``ProofRequest`` with fields of shape ``x.shape[:-1]``) whose ``jax.vmap`` over x folds the
+    mapped axis into the batch (one long kernel call) instead of adding a short outer axis to
+    every array in it. Not reverse-differentiable (``jax.custom_batching``).
     """
     @jax.custom_batching.custom_vmap
     def evaluate_spec(arrays, x, request):
@@ -160,17 +159,27 @@ def vmapped_evaluate(spec: ProblemSpec):
         if any(jax.tree.leaves(arrays_batched)):  # several problems: an ordinary vmap
             in_axes = (jax.tree.map(lambda b: 0 if b else None, arrays_batched),
                        0 if x_batched else None,
-                       ProofRequest(*(0 if b else None for b in request_batched)))
+                       None if request is None
+                       else ProofRequest(*(0 if b else None for b in request_batched)))
             result = jax.vmap(functools.partial(evaluate, spec), in_axes=in_axes)(arrays, x,
                                                                                   request)
         else:
             if not x_batched:
                 x = jnp.broadcast_to(x, (axis_size,) + x.shape)
-            request = ProofRequest(*(
-                field if batched else jnp.broadcast_to(field, (axis_size,) + field.shape)
-                for field, batched in zip(request, request_batched)))
+            if request is not None:
+                request = ProofRequest(*(
+                    field if batched else jnp.broadcast_to(field, (axis_size,) + field.shape)
+                    for field, batched in zip(request, request_batched)))
             result = evaluate_spec(arrays, x, request)
         return result, Evaluation(True, True, True)
+
+    return evaluate_spec
+
+
+def vmapped_evaluate(spec: ProblemSpec):
+    """``folded_evaluate`` as a search measures: ``(arrays, x, request=None)``, where None asks
+    for every path proved in full, with the search's spare (``evaluate``)."""
+    evaluate_spec = folded_evaluate(spec)
 
     def evaluate_with_request(arrays, x, request=None):
         if request is None:  # every path proved, fully
@@ -200,10 +209,32 @@ def _evaluate_and_certify(spec: ProblemSpec, arrays: ProblemArrays, rows):
                                    check.exhausted & ~colliding, check.witness_r, none, none)
 
 
-def _evaluated(problem: Problem, x) -> Evaluation:
-    """``evaluate`` of x (..., n_free) in one of a few compiled programs per problem spec."""
+def evaluate_paths(problem: Problem, x) -> Evaluation:
+    """Fitness, violation and travelling distance of paths, in one pass of the problem's check
+    (``jaxarm.evaluate``): what an optimiser needs of each path it asks about.
+
+    The same compiled program as ``fitness`` and ``violation``, so each field equals theirs bit
+    for bit, at the cost of one of them; it traces under ``jax.jit`` and ``jax.vmap``.
+
+    Args:
+      problem: the problem (its ``collision`` mode decides what colliding means).
+      x: free parameters, shape (..., n_free).
+
+    Returns:
+      ``Evaluation`` of arrays of shape (...,): ``fitness`` (paper eq. 17), ``violation``
+      (>= 0, 0 iff collision-free), ``distance`` (the joint travelling distance, eq. 5).
+
+    Examples:
+      >>> problem = jaxarm.load_scenario("paper-case-2")
+      >>> evaluation = jaxarm.evaluate(problem, [66.7388, -28.1028, -9.8855])
+      >>> float(evaluation.fitness), float(evaluation.violation)  # doctest: +ELLIPSIS
+      (0.1946..., 0.0)
+    """
+    x = as_params(problem, x)
+    if isinstance(x, jax.core.Tracer):  # inside the caller's jit or vmap: fold its vmaps
+        return folded_evaluate(problem.spec)(problem.arrays, x, None)
     return on_padded_rows(functools.partial(_evaluate_and_certify, problem.spec, problem.arrays),
-                          as_params(problem, x))[0]
+                          x)[0]
 
 
 
@@ -222,7 +253,7 @@ def fitness(problem: Problem, x) -> jax.Array:
       >>> float(jaxarm.fitness(problem, [66.7388, -28.1028, -9.8855]))  # doctest: +ELLIPSIS
       0.1946...
     """
-    return _evaluated(problem, x).fitness
+    return evaluate_paths(problem, x).fitness
 
 
 def violation(problem: Problem, x) -> jax.Array:
@@ -235,7 +266,7 @@ def violation(problem: Problem, x) -> jax.Array:
     Returns:
       Array of shape (...,), >= 0 and exactly 0 iff the path is collision-free.
     """
-    return _evaluated(problem, x).violation
+    return evaluate_paths(problem, x).violation
 
 
 def collides(problem: Problem, x) -> jax.Array:

@@ -24,8 +24,9 @@ from __future__ import annotations
 from typing import Callable, NamedTuple
 
 import jax
+import jax.numpy as jnp
 
-from jaxarm.optim.constraints import Measured
+from jaxarm.optim.constraints import Measured, constraint_index
 
 MeasureFn = Callable[[jax.Array], Measured]
 
@@ -89,3 +90,43 @@ def on_first_iteration(iteration, first: Callable, later: Callable):
     if isinstance(iteration, int):
         return first() if iteration == 0 else later()
     return jax.lax.cond(iteration == 0, first, later)
+
+
+class Best(NamedTuple):
+    """The lowest-cost path an optimiser has been told of (for optimisers that keep no best of
+    their own: evosax's strategies and users' own), each field of one restart."""
+
+    x: jax.Array  # shape=(n_free,)
+    cost: jax.Array  # shape=(), ``rule_cost`` (inf before the first tell)
+    fitness: jax.Array  # shape=(), paper eq. 17 fitness of x
+    violation: jax.Array  # shape=(), its reported violation
+
+
+def no_best(x) -> Best:
+    """Before the first tell: x (population, n_free) gives the shapes."""
+    zero = jnp.zeros((), x.dtype)
+    return Best(x=x[0], cost=jnp.asarray(jnp.inf, x.dtype), fitness=zero, violation=zero)
+
+
+def rule_cost(measured: Measured, constraint) -> jax.Array:
+    """Costs to minimise under the death penalty (``-fitness``: every colliding path 0) or
+    feasibility rules (``-fitness`` when free, else the ranked violation, > 0: a free path beats
+    every colliding one, and less violation beats more: Deb's rules as one number);
+    ``constraint``: ``constraint_index`` of either (data)."""
+    feasibility = jnp.asarray(constraint) == constraint_index("feasibility")
+    return jnp.where(feasibility & (measured.ranked_violation > 0), measured.ranked_violation,
+                     -measured.fitness)
+
+
+def told_best(best: Best, x, cost, measured: Measured) -> tuple[Best, StepInfo]:
+    """``best`` after paths x (population, n_free) of these costs (the first on ties), and
+    the ``StepInfo`` the restart loop records."""
+    index = jnp.argmin(cost)
+    better = cost[index] < best.cost
+    keep = lambda new, old: jnp.where(better, new, old)  # noqa: E731
+    best = Best(keep(x[index], best.x), keep(cost[index], best.cost),
+                keep(measured.fitness[index], best.fitness),
+                keep(measured.violation[index], best.violation))
+    return best, StepInfo(global_position=best.x, global_fitness=best.fitness,
+                          global_violation=best.violation, global_score=-best.cost,
+                          n_feasible=(measured.ranked_violation == 0).sum(dtype=jnp.int32))

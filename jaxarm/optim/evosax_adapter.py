@@ -31,8 +31,8 @@ import jax
 import jax.numpy as jnp
 
 from jaxarm._compile.jit import rank_promotion_allowed
-from jaxarm.optim.base import MeasureFn, Optimizer, StepInfo, on_first_iteration
-from jaxarm.optim.constraints import constraint_index
+from jaxarm.optim.base import (Best, MeasureFn, Optimizer, StepInfo, no_best, on_first_iteration,
+                               rule_cost, told_best)
 
 PREFIX = "evosax:"
 ALIASES = {"DE": "DifferentialEvolution", "GA": "SimpleGA"}
@@ -94,10 +94,7 @@ class StrategyState(NamedTuple):
     """The evosax state, the best path seen so far, and what ``tell`` needs."""
 
     inner: object  # the strategy's own state (a pytree; a placeholder before the first tell)
-    best_x: jax.Array  # shape=(n_dims,)
-    best_cost: jax.Array  # shape=()
-    best_fitness: jax.Array  # shape=(), paper eq. 17 fitness of best_x
-    best_violation: jax.Array  # shape=(), its reported violation
+    best: Best
     tell_key: jax.Array  # the key of the next tell (or of the strategy's init)
 
 
@@ -123,7 +120,6 @@ def strategy_swarm(config: StrategyConfig, measure_fn: MeasureFn, low, high, *,
         params = params.replace(std_init=jnp.mean(high - low) / 4)
     distribution = isinstance(strategy, algorithms.distribution_based.base.
                               DistributionBasedAlgorithm)
-    feasibility = jnp.asarray(constraint) == constraint_index("feasibility")
 
     def init(key):
         draw, start_key, ask, tell = jax.random.split(key, 4)
@@ -135,14 +131,11 @@ def strategy_swarm(config: StrategyConfig, measure_fn: MeasureFn, low, high, *,
             shapes = jax.eval_shape(initial, start_key, x, jnp.zeros(n_particles, x.dtype),
                                     params)
             inner = jax.tree.map(lambda leaf: jnp.zeros(leaf.shape, leaf.dtype), shapes)
-        zero = jnp.zeros((), x.dtype)
-        return StrategyState(inner=inner, best_x=x[0], best_cost=jnp.asarray(jnp.inf, x.dtype),
-                             best_fitness=zero, best_violation=zero,
+        return StrategyState(inner=inner, best=no_best(x),
                              tell_key=tell if distribution else start_key), x
 
     def tell(state: StrategyState, x, measured, iteration) -> tuple[StrategyState, StepInfo]:
-        cost = jnp.where(feasibility & (measured.ranked_violation > 0), measured.ranked_violation,
-                         -measured.fitness)
+        cost = rule_cost(measured, constraint)
 
         def told():
             return told_by(state.tell_key, x, cost, state.inner, params)[0]
@@ -152,19 +145,8 @@ def strategy_swarm(config: StrategyConfig, measure_fn: MeasureFn, low, high, *,
         else:  # the initial population makes the strategy's state
             inner = on_first_iteration(
                 iteration, lambda: initial(state.tell_key, x, cost, params), told)
-        best = jnp.argmin(cost)  # the first on ties
-        better = cost[best] < state.best_cost
-        keep = lambda new, old: jnp.where(better, new, old)  # noqa: E731
-        state = state._replace(inner=inner, best_x=keep(x[best], state.best_x),
-                               best_cost=keep(cost[best], state.best_cost),
-                               best_fitness=keep(measured.fitness[best], state.best_fitness),
-                               best_violation=keep(measured.violation[best],
-                                                   state.best_violation))
-        return state, StepInfo(global_position=state.best_x,
-                                   global_fitness=state.best_fitness,
-                                   global_violation=state.best_violation,
-                                   global_score=-state.best_cost,
-                                   n_feasible=(measured.ranked_violation == 0).sum(dtype=jnp.int32))
+        best, info = told_best(state.best, x, cost, measured)
+        return state._replace(inner=inner, best=best), info
 
     def ask(key, state: StrategyState):
         ask_key, tell_key = jax.random.split(key)

@@ -8,8 +8,9 @@ parser, ``parse_method`` (``parse_methods`` for a study's list).
                 or "evosax:<Strategy>" (``jaxarm.optim.evosax_adapter``)
     constraint  "death" | "feasibility" | "epsilon" | "penalty": ``jaxarm.optim.constraints``
 
-A ``PSOConfig`` or ``StrategyConfig`` may stand for the name; the constraint then comes from
-the caller.
+A ``PSOConfig`` or ``StrategyConfig`` may stand for the name, and so may a user's own optimiser
+(``jaxarm.optim.custom``: any object with ``label``, ``population``, ``init``, ``ask`` and
+``tell``, labelled by its ``label``); the constraint then comes from the caller.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from __future__ import annotations
 from typing import NamedTuple, Sequence
 
 from jaxarm.choices import CONSTRAINTS, PSO_METHODS, TOPOLOGY_SUFFIXES, one_of
-from jaxarm.optim import evosax_adapter, pso
+from jaxarm.optim import custom, evosax_adapter, pso
+from jaxarm.optim.custom import CustomConfig, RecordedOptimizer
 from jaxarm.optim.evosax_adapter import PREFIX, StrategyConfig
 from jaxarm.optim.pso import PSOConfig
 
@@ -25,8 +27,8 @@ from jaxarm.optim.pso import PSOConfig
 class Variant(NamedTuple):
     """A method under a constraint rule, and its label: one row of a study, one ``solve``."""
 
-    label: str  # e.g. "A", "A:feasibility", "custom", "evosax:CMA_ES"
-    config: PSOConfig | StrategyConfig
+    label: str  # e.g. "A", "A:feasibility", "custom", "evosax:CMA_ES", "(1+8)-ES"
+    config: PSOConfig | StrategyConfig | CustomConfig
     constraint: str
 
     @property
@@ -41,8 +43,8 @@ def parse_method(method, constraint: str | None = None, *, default_constraint: s
     """``method`` as a validated ``Variant``.
 
     Args:
-      method: a name of the grammar above, a ``PSOConfig``, a ``StrategyConfig`` or a
-        ``Variant``.
+      method: a name of the grammar above, a ``PSOConfig``, a ``StrategyConfig``, a user's
+        optimiser (``jaxarm.optim.custom``) or a ``Variant``.
       constraint: the rule the caller asks for (``solve``'s ``constraint``): a method that
         names another is a ValueError naming both. None: the rule the method names, else
         ``default_constraint``.
@@ -78,12 +80,13 @@ def parse_method(method, constraint: str | None = None, *, default_constraint: s
             rule = one_of("constraint", fallback, CONSTRAINTS)
             config = _config(method, method)
             name = (PREFIX + config.strategy if isinstance(config, StrategyConfig)
-                    else custom_label)
+                    else config.label if isinstance(config, CustomConfig) else custom_label)
         variant = Variant(name if rule == "death" else f"{name}:{rule}", config, rule)
-    if (isinstance(variant.config, StrategyConfig)
+    if (isinstance(variant.config, (StrategyConfig, CustomConfig))
             and rule not in evosax_adapter.STRATEGY_CONSTRAINTS):
         raise ValueError(f"constraint of {variant.label} must be one of "
-                         f"{evosax_adapter.STRATEGY_CONSTRAINTS} (evosax strategies), "
+                         f"{evosax_adapter.STRATEGY_CONSTRAINTS} (evosax strategies and your "
+                         f"own optimisers: jaxarm keeps their best path by one of these), "
                          f"got {rule!r}")
     if constraint is not None and rule != constraint:
         raise ValueError(f"method {method!r} names constraint {rule!r} but "
@@ -99,7 +102,8 @@ def parse_methods(methods: Sequence, default_constraint: str) -> list[Variant]:
     "custom", the next ones "custom-2", "custom-3", ...; a ``Variant`` keeps its own label.
     Labels must be unique.
     """
-    if isinstance(methods, (str, PSOConfig, Variant, StrategyConfig)):
+    if isinstance(methods, (str, PSOConfig, Variant, StrategyConfig, CustomConfig)) or (
+            custom.is_optimizer(methods)):
         methods = [methods]  # one method, not its characters or fields
     variants, n_custom = [], 0
     for method in methods:
@@ -124,13 +128,16 @@ def _names_evosax(method: str) -> bool:
     return method.startswith(PREFIX)
 
 
-def _config(name, method) -> PSOConfig | StrategyConfig:
-    """The validated config that a name without its rule (or a config) stands for; ``method``
-    is what error messages quote."""
-    if isinstance(name, (PSOConfig, StrategyConfig)):
+def _config(name, method) -> PSOConfig | StrategyConfig | CustomConfig:
+    """The validated config that a name without its rule (or a config, or an optimiser) stands
+    for; ``method`` is what error messages quote."""
+    if isinstance(name, (PSOConfig, StrategyConfig, CustomConfig, RecordedOptimizer)):
         return name.validate()
+    if custom.is_optimizer(name):
+        return CustomConfig(name).validate()
     if not isinstance(name, str):
-        raise ValueError(f"method must be a name or a PSOConfig, got {method!r}")
+        raise ValueError(f"method must be a name, a PSOConfig or an optimiser with "
+                         f"{', '.join(custom.MEMBERS)}, got {method!r}")
     if name.startswith(PREFIX):
         strategy = name[len(PREFIX):]
         return StrategyConfig(evosax_adapter.ALIASES.get(strategy, strategy)).validate()
@@ -171,3 +178,20 @@ def _fields_in_brackets(method: str, text: str) -> dict:
                 raise ValueError(f"method {method!r}: {field} must be a number, "
                                  f"got {value!r}") from None
     return changed
+
+
+def swarm_size(variants: Sequence[Variant], n_particles: int | None, default: int) -> int:
+    """The paths per iteration of a call's methods: ``n_particles``; None: the population of
+    the user's own optimisers among ``variants``, else ``default``. Every method of a call gets
+    the same budget, so an optimiser whose population differs is a ValueError saying so."""
+    populations = {v.config.population: v.label for v in variants
+                   if isinstance(v.config, CustomConfig)}
+    if not populations:
+        return default if n_particles is None else n_particles
+    size = next(iter(populations)) if n_particles is None else n_particles
+    for population, label in populations.items():
+        if population != size:
+            raise ValueError(f"method {label!r} asks {population} paths per iteration but "
+                             f"n_particles={size}: every method of a call runs the same number "
+                             f"(give n_particles={population}, or optimisers of one population)")
+    return size

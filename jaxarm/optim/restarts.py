@@ -24,7 +24,7 @@ from jaxarm._compile.jit import jit
 from jaxarm._compile.padding import round_up
 from jaxarm.checks.evaluate import ProofRequest, compiles_best_at_default_level, vmapped_evaluate
 from jaxarm.model.problem import Problem, ProblemArrays, ProblemSpec
-from jaxarm.optim import constraints, evosax_adapter, pso
+from jaxarm.optim import constraints, custom, evosax_adapter, pso
 from jaxarm.optim.base import Optimizer, StepInfo
 from jaxarm.optim.constraints import constraint_index
 
@@ -143,7 +143,8 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
     Args:
       spec: static problem part; arrays: its data.
       params, rules: ``PSOConfig.params()`` and ``.rules()``, or an evosax
-        ``evosax_adapter.StrategyConfig``'s (``rules`` is then the config itself).
+        ``evosax_adapter.StrategyConfig``'s or a user's ``custom.CustomConfig``'s (``rules`` is
+        then the config itself; n_particles its population).
       data: ``SearchData``.
       n_particles, n_iters: static sizes.
       xla_default_level: static, read by ``compiled_search`` only: compile at XLA's default
@@ -157,6 +158,9 @@ def search_restarts(spec: ProblemSpec, arrays: ProblemArrays, params: pso.PSOPar
     if isinstance(rules, evosax_adapter.StrategyConfig):  # "evosax:<Strategy>"
         optimizer = evosax_adapter.strategy_swarm(rules, measure, low, high,
                                                   n_particles=n_particles, constraint=constraint)
+    elif isinstance(rules, custom.CustomConfig):  # the user's own
+        optimizer = custom.custom_swarm(rules, path_evaluation(spec, arrays), low, high,
+                                        constraint=constraint)
     else:
         optimizer = pso.swarm(params, rules, measure, low, high, n_particles=n_particles,
                               n_iters=n_iters, init_particles=init_particles, n_given=n_given,
@@ -182,6 +186,13 @@ def path_measurement(spec: ProblemSpec, arrays: ProblemArrays):
                                          evaluation.distance)
 
     return measure
+
+
+def path_evaluation(spec: ProblemSpec, arrays: ProblemArrays):
+    """What a search tells a user's optimiser (``custom``) of its paths: ``x ->
+    jaxarm.Evaluation``, every path proved in full, measured as ``path_measurement`` does."""
+    evaluate = vmapped_evaluate(spec)
+    return lambda x: evaluate(arrays, x)
 
 
 compiled_search = jit(
@@ -248,7 +259,8 @@ def to_host(array: jax.Array) -> np.ndarray:
     return np.asarray(multihost_utils.process_allgather(array, tiled=True))
 
 
-def run_restarts(problem: Problem, config: pso.PSOConfig | evosax_adapter.StrategyConfig,
+def run_restarts(problem: Problem, config: pso.PSOConfig | evosax_adapter.StrategyConfig
+                 | custom.CustomConfig,
                  constraint: str, *, n_particles: int, n_iters: int, seed: int,
                  first_restart: int, n_restarts: int, init_particles=None) -> RestartOutcome:
     """The compiled search for restarts ``first_restart ..``, as NumPy arrays."""
