@@ -201,7 +201,8 @@ def cluttered_main(counts: list, n_scenes: int, time_limit: float) -> None:
           f"+ simplify, {time_limit:g} s each; jax {jax.__version__} on "
           f"{jax.devices()[0].platform}\n")
     print("| circles | default certified (degrees) | RRTConnect solved | default certified "
-          "where RRTConnect solved | median s to the first path, default / RRTConnect | "
+          "where RRTConnect solved | median s: the default's call (compiling included on a "
+          "density's first scene) / RRTConnect to its first solution | "
           "median joint-space length (rad), both solved | median max jerk (rad / r^3), both "
           "solved: default / RRTConnect at rest (cubic) | default smoother |")
     print("|---|---|---|---|---|---|---|---|")

@@ -113,8 +113,11 @@ class Result(NamedTuple):
     certified: bool  # best_x proved free for every r by ``jaxarm.certify``
     pso_best_fitness: float  # best_fitness before refinement (equal when refine=False)
     method: str  # the method's name without its rule ("A", "A-ring", "evosax:CMA_ES"),
-    #   "custom", or the default search's "A-ring[inertia_end=0.4] x 8 + A x 8"
-    config: pso.PSOConfig | evosax_adapter.StrategyConfig  # the best restart's method's
+    #   "custom", a user's optimiser's label, or the default search's
+    #   "A-ring[inertia_end=0.4] x 8 + A x 8"
+    config: (pso.PSOConfig | evosax_adapter.StrategyConfig | CustomConfig
+             | RecordedOptimizer)  # the best restart's method's (a saved record's user
+    #   optimiser: its label alone)
     constraint: str
     collision: str  # the collision mode the search used
     degree: int  # the degree of the paths in ``restarts`` (the problem's, or the one an
@@ -252,7 +255,8 @@ def _plain(array) -> list:
     return array.tolist()
 
 
-def solve(problem: Problem, method=None, *, n_particles: int | None = None, n_iters: int = N_ITERS, n_restarts: int | None = None,
+def solve(problem: Problem, method=None, *, n_particles: int | None = None,
+          n_iters: int = N_ITERS, n_restarts: int | None = None,
           seed: int = 0, constraint: str | None = None, init_particles=None,
           refine: bool | str = False, time_limit: float | None = None,
           max_stages: int | None = None, improve: bool = False,

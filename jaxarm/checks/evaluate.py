@@ -213,8 +213,10 @@ def evaluate_paths(problem: Problem, x) -> Evaluation:
     """Fitness, violation and travelling distance of paths, in one pass of the problem's check
     (``jaxarm.evaluate``): what an optimiser needs of each path it asks about.
 
-    The same compiled program as ``fitness`` and ``violation``, so each field equals theirs bit
-    for bit, at the cost of one of them; it traces under ``jax.jit`` and ``jax.vmap``.
+    Called from the host, the same compiled program as ``fitness`` and ``violation``, so each
+    field equals theirs bit for bit, at the cost of one of them. Inside a caller's ``jax.jit``
+    or ``jax.vmap`` it is traced into the caller's program, a ``vmap`` folded into one batch of
+    paths (``folded_evaluate``; not reverse-differentiable there: ``fitness`` is).
 
     Args:
       problem: the problem (its ``collision`` mode decides what colliding means).
@@ -233,8 +235,14 @@ def evaluate_paths(problem: Problem, x) -> Evaluation:
     x = as_params(problem, x)
     if isinstance(x, jax.core.Tracer):  # inside the caller's jit or vmap: fold its vmaps
         return folded_evaluate(problem.spec)(problem.arrays, x, None)
+    return _evaluated(problem, x)
+
+
+def _evaluated(problem: Problem, x) -> Evaluation:
+    """``evaluate`` of x (..., n_free) in one of a few compiled programs per problem spec (a
+    nested ``jax.jit`` inside a caller's trace)."""
     return on_padded_rows(functools.partial(_evaluate_and_certify, problem.spec, problem.arrays),
-                          x)[0]
+                          as_params(problem, x))[0]
 
 
 
@@ -253,7 +261,7 @@ def fitness(problem: Problem, x) -> jax.Array:
       >>> float(jaxarm.fitness(problem, [66.7388, -28.1028, -9.8855]))  # doctest: +ELLIPSIS
       0.1946...
     """
-    return evaluate_paths(problem, x).fitness
+    return _evaluated(problem, x).fitness
 
 
 def violation(problem: Problem, x) -> jax.Array:
@@ -266,7 +274,7 @@ def violation(problem: Problem, x) -> jax.Array:
     Returns:
       Array of shape (...,), >= 0 and exactly 0 iff the path is collision-free.
     """
-    return evaluate_paths(problem, x).violation
+    return _evaluated(problem, x).violation
 
 
 def collides(problem: Problem, x) -> jax.Array:

@@ -12,8 +12,9 @@ An optimiser is a set of pure functions over a state (a pytree), as optax's
 - ``bar`` (optional): ``bar(state) -> Bar``, what each particle's next path must do to change
   the state, so that the loop need not prove the others.
 
-PSO (``jaxarm.optim.pso.swarm``) and evosax's strategies (``jaxarm.optim.evosax_adapter``)
-implement it; ``restarts.run_restarts_of`` runs any optimiser given this way, vmapped over
+PSO (``jaxarm.optim.pso.swarm``), evosax's strategies (``jaxarm.optim.evosax_adapter``) and
+users' own optimisers (``jaxarm.optim.custom``, written to a simpler public protocol) implement
+it; ``restarts.run_restarts_of`` runs any optimiser given this way, vmapped over
 restarts and scanned over iterations. Each function sees one restart. ``iteration`` is the
 loop's counter, the same for every restart, so a branch on it runs one side only under
 ``vmap`` (``on_first_iteration``).
@@ -103,9 +104,10 @@ class Best(NamedTuple):
 
 
 def no_best(x) -> Best:
-    """Before the first tell: x (population, n_free) gives the shapes."""
-    zero = jnp.zeros((), x.dtype)
-    return Best(x=x[0], cost=jnp.asarray(jnp.inf, x.dtype), fitness=zero, violation=zero)
+    """Before the first tell (nothing kept: infinitely colliding); x (population, n_free)
+    gives the shapes."""
+    inf = jnp.asarray(jnp.inf, x.dtype)
+    return Best(x=x[0], cost=inf, fitness=jnp.zeros((), x.dtype), violation=inf)
 
 
 def rule_cost(measured: Measured, constraint) -> jax.Array:
@@ -119,8 +121,9 @@ def rule_cost(measured: Measured, constraint) -> jax.Array:
 
 
 def told_best(best: Best, x, cost, measured: Measured) -> tuple[Best, StepInfo]:
-    """``best`` after paths x (population, n_free) of these costs (the first on ties), and
-    the ``StepInfo`` the restart loop records."""
+    """``best`` after paths x (population, n_free) of these costs (the first on ties; a NaN
+    cost counts as inf), and the ``StepInfo`` the restart loop records."""
+    cost = jnp.where(jnp.isnan(cost), jnp.inf, cost)
     index = jnp.argmin(cost)
     better = cost[index] < best.cost
     keep = lambda new, old: jnp.where(better, new, old)  # noqa: E731

@@ -15,16 +15,21 @@ iteration's key), told its evaluation; iteration t >= 1 asks with that iteration
 tells. The evaluation is the search's own measurement (fitness, violation and travelling
 distance per path, the problem's check). jaxarm keeps per restart the path it would report, by
 the study's constraint rule (death penalty: the fittest; feasibility rules: a free path before
-any colliding one, then the least violation), for the escape iteration, best fitness and
+any colliding one, then the least violation times travelling distance, as
+``constraints.path_measures`` ranks them), for the escape iteration, best fitness and
 violation, best path and curves that it records for the PSO; the optimiser's own ranking is its
 business.
 
 The functions must be traceable by JAX (jax.numpy, ``jax.random``, ``lax``; no Python branches
-on values). The compiled program is specialised on the object: the same object again reuses it.
+on values), and ``ask`` and ``tell`` must give back a state of the structure, shapes and dtypes
+that ``init`` made. The compiled program is specialised on the object, and what its functions
+read of it is compiled in at its first use: the same object (or an equal one, for a frozen
+dataclass or a NamedTuple) reuses the program; to change a setting, make a new object.
 """
 
 from __future__ import annotations
 
+import operator
 from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import jax
@@ -56,24 +61,39 @@ class OptimizerProtocol(Protocol):
 
 
 def is_optimizer(method) -> bool:
-    """Whether ``method`` has the five members of the protocol (module docstring)."""
-    return not isinstance(method, (str, tuple)) and all(hasattr(method, m) for m in MEMBERS)
+    """Whether ``method`` has the five members of the protocol (module docstring); a class
+    (rather than an instance) has them too, and is refused by ``CustomConfig.validate``."""
+    return not isinstance(method, str) and all(hasattr(method, m) for m in MEMBERS)
+
+
+def looks_like_optimizer(method) -> bool:
+    """Whether ``method`` means to be one (has ``init``, ``ask`` or ``tell``), so that an error
+    can say which member it lacks."""
+    return not isinstance(method, str) and any(hasattr(method, m) for m in ("init", "ask", "tell"))
 
 
 class CustomConfig:
     """A user's optimiser as a method's config: the compiled search's static rule, equal and
-    hashed by the optimiser object's identity."""
+    hashed as the optimiser is (by its type and value when it defines them, as a frozen
+    dataclass or a NamedTuple does; else by identity)."""
 
     __slots__ = ("optimizer",)
 
     def __init__(self, optimizer):
         self.optimizer = optimizer
 
+    def _key(self):
+        try:
+            hash(self.optimizer)
+        except TypeError:  # a mutable dataclass: by identity
+            return type(self.optimizer), id(self.optimizer)
+        return type(self.optimizer), self.optimizer
+
     def __eq__(self, other) -> bool:
-        return isinstance(other, CustomConfig) and other.optimizer is self.optimizer
+        return isinstance(other, CustomConfig) and other._key() == self._key()
 
     def __hash__(self) -> int:
-        return id(self.optimizer)
+        return hash(self._key())
 
     def __repr__(self) -> str:
         return f"CustomConfig({self.label!r})"
@@ -84,7 +104,7 @@ class CustomConfig:
 
     @property
     def population(self) -> int:
-        return self.optimizer.population
+        return operator.index(self.optimizer.population)
 
     @property
     def velocity_rule(self) -> str:
@@ -100,6 +120,9 @@ class CustomConfig:
 
     def validate(self) -> "CustomConfig":
         """The config, or a ValueError naming the member that breaks the protocol."""
+        if isinstance(self.optimizer, type):
+            raise ValueError(f"method {self.optimizer.__name__} is a class: pass an instance, "
+                             f"{self.optimizer.__name__}()")
         missing = [m for m in MEMBERS if not hasattr(self.optimizer, m)]
         if missing:
             raise ValueError(f"method {self.optimizer!r} lacks {', '.join(missing)}: an "
@@ -109,11 +132,16 @@ class CustomConfig:
             raise ValueError(f"an optimiser's label must be a name without ':' or ',', "
                              f"got {label!r}")
         population = self.optimizer.population
-        if isinstance(population, bool) or not isinstance(population, int) or population < 2:
+        try:
+            valid = not isinstance(population, bool) and operator.index(population) >= 2
+        except TypeError:
+            valid = False
+        if not valid:
             raise ValueError(f"population of {label!r} must be an int >= 2, got {population!r}")
         for name in ("init", "ask", "tell"):
-            if not callable(getattr(self.optimizer, name)):
-                raise ValueError(f"{name} of {label!r} must be a function")
+            function = getattr(self.optimizer, name)
+            if not callable(function):
+                raise ValueError(f"{name} of {label!r} must be a function, got {function!r}")
         return self
 
     def _asdict(self) -> dict:
@@ -142,6 +170,25 @@ def custom_swarm(config: CustomConfig, evaluate_fn, low, high, *, constraint) ->
                             for name in ("init", "ask", "tell"))
     shape = (config.population,) + low.shape
 
+    def kept(name: str, before, after):
+        """``after``, or a ValueError where ``name`` changed the state's structure, a shape or a
+        dtype (a scan carries the state from one iteration to the next)."""
+        def types(tree):
+            leaves, structure = jax.tree_util.tree_flatten_with_path(tree)
+            return structure, [(jax.tree_util.keystr(path), jnp.shape(leaf),
+                                jnp.result_type(leaf)) for path, leaf in leaves]
+        (was, old), (now, new) = types(before), types(after)
+        if was != now:
+            raise ValueError(f"{name} of {config.label!r} must give back a state of init's "
+                             f"structure {was}, got {now}")
+        for (path, *type_before), (_, *type_after) in zip(old, new):
+            if type_before != type_after:
+                raise ValueError(f"{name} of {config.label!r} changed state{path} from "
+                                 f"{type_before[1]}{list(type_before[0])} to "
+                                 f"{type_after[1]}{list(type_after[0])}: give back what init "
+                                 f"made")
+        return after
+
     def checked(x):
         if getattr(x, "shape", None) != shape:
             raise ValueError(f"ask of {config.label!r} must return x of shape {shape} "
@@ -150,19 +197,20 @@ def custom_swarm(config: CustomConfig, evaluate_fn, low, high, *, constraint) ->
 
     def init(key):
         init_key, ask_key = jax.random.split(key)
-        x, inner = asked(ask_key, initial(init_key, low, high))
-        x = checked(x)
+        state = initial(init_key, low, high)
+        x, inner = asked(ask_key, state)
+        x, inner = checked(x), kept("ask", state, inner)
         return CustomState(inner, no_best(x)), x
 
     def tell(state: CustomState, x, evaluation, iteration) -> tuple[CustomState, StepInfo]:
-        inner = told(state.inner, x, evaluation)
+        inner = kept("tell", state.inner, told(state.inner, x, evaluation))
         measured = path_measures(evaluation.fitness, evaluation.violation, evaluation.distance)
         best, info = told_best(state.best, x, rule_cost(measured, constraint), measured)
         return CustomState(inner, best), info
 
     def ask(key, state: CustomState):
         x, inner = asked(key, state.inner)
-        return CustomState(inner, state.best), checked(x)
+        return CustomState(kept("ask", state.inner, inner), state.best), checked(x)
 
     return Optimizer(init=init, tell=tell, ask=ask, measure=evaluate_fn)
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from typing import NamedTuple, Sequence
 
+from jaxarm._validate import positive_int
 from jaxarm.choices import CONSTRAINTS, PSO_METHODS, TOPOLOGY_SUFFIXES, one_of
 from jaxarm.optim import custom, evosax_adapter, pso
 from jaxarm.optim.custom import CustomConfig, RecordedOptimizer
@@ -95,15 +96,15 @@ def parse_method(method, constraint: str | None = None, *, default_constraint: s
 
 
 def parse_methods(methods: Sequence, default_constraint: str) -> list[Variant]:
-    """A study's rows: ``parse_method`` of each entry (names, ``PSOConfig``s, ``StrategyConfig``s
-    or ``Variant``s; one of them alone is a list of one).
+    """A study's rows: ``parse_method`` of each entry (names, ``PSOConfig``s, ``StrategyConfig``s,
+    users' optimisers or ``Variant``s; one of them alone is a list of one).
 
     Entries that name no constraint get ``default_constraint``. A ``PSOConfig`` is labelled
     "custom", the next ones "custom-2", "custom-3", ...; a ``Variant`` keeps its own label.
     Labels must be unique.
     """
-    if isinstance(methods, (str, PSOConfig, Variant, StrategyConfig, CustomConfig)) or (
-            custom.is_optimizer(methods)):
+    if isinstance(methods, (str, PSOConfig, Variant, StrategyConfig, CustomConfig,
+                            RecordedOptimizer)) or custom.looks_like_optimizer(methods):
         methods = [methods]  # one method, not its characters or fields
     variants, n_custom = [], 0
     for method in methods:
@@ -133,8 +134,12 @@ def _config(name, method) -> PSOConfig | StrategyConfig | CustomConfig:
     for; ``method`` is what error messages quote."""
     if isinstance(name, (PSOConfig, StrategyConfig, CustomConfig, RecordedOptimizer)):
         return name.validate()
-    if custom.is_optimizer(name):
-        return CustomConfig(name).validate()
+    if custom.looks_like_optimizer(name):  # says which member it lacks, if any
+        config = CustomConfig(name).validate()
+        if config.label.partition("[")[0] in PSO_METHODS or config.label.startswith(PREFIX):
+            raise ValueError(f"an optimiser's label must not be a built-in method's name, got "
+                             f"{config.label!r}")
+        return config
     if not isinstance(name, str):
         raise ValueError(f"method must be a name, a PSOConfig or an optimiser with "
                          f"{', '.join(custom.MEMBERS)}, got {method!r}")
@@ -184,14 +189,22 @@ def swarm_size(variants: Sequence[Variant], n_particles: int | None, default: in
     """The paths per iteration of a call's methods: ``n_particles``; None: the population of
     the user's own optimisers among ``variants``, else ``default``. Every method of a call gets
     the same budget, so an optimiser whose population differs is a ValueError saying so."""
+    if n_particles is not None:
+        positive_int("n_particles", n_particles, minimum=2)
     populations = {v.config.population: v.label for v in variants
                    if isinstance(v.config, CustomConfig)}
     if not populations:
         return default if n_particles is None else n_particles
-    size = next(iter(populations)) if n_particles is None else n_particles
+    if n_particles is None:
+        (first, label), *others = populations.items()
+        if others:
+            raise ValueError(f"method {label!r} asks {first} paths per iteration and "
+                             f"{others[0][1]!r} {others[0][0]}: every method of a call runs the "
+                             f"same number (give optimisers of one population)")
+        return first
     for population, label in populations.items():
-        if population != size:
+        if population != n_particles:
             raise ValueError(f"method {label!r} asks {population} paths per iteration but "
-                             f"n_particles={size}: every method of a call runs the same number "
-                             f"(give n_particles={population}, or optimisers of one population)")
-    return size
+                             f"n_particles={n_particles!r}: every method of a call runs the same "
+                             f"number (give n_particles={population}, or leave it out)")
+    return n_particles
