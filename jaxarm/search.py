@@ -257,10 +257,9 @@ def _plain(array) -> list:
 
 def solve(problem: Problem, method=None, *, n_particles: int | None = None,
           n_iters: int = N_ITERS, n_restarts: int | None = None, seed: int = 0,
-          constraint: str | None = None, init_particles=None,
-          refine: bool | str = False, time_limit: float | None = None,
-          max_stages: int | None = None, improve: bool = False,
-          progress: Callable | bool | None = None) -> Result:
+          constraint: str | None = None, init_particles=None, refine: bool | str = False,
+          time_limit: float | None = None, max_stages: int | None = None,
+          improve: bool = False, progress: Callable | bool | None = None) -> Result:
     """Search the problem's free coefficients with PSO, ``n_restarts`` independent swarms at once,
     and, under a time limit, more restarts and higher degrees until a path is proved free.
 
