@@ -60,12 +60,6 @@ class OptimizerProtocol(Protocol):
         """The state after x's ``jaxarm.Evaluation`` (fields of shape (population,))."""
 
 
-def is_optimizer(method) -> bool:
-    """Whether ``method`` has the five members of the protocol (module docstring); a class
-    (rather than an instance) has them too, and is refused by ``CustomConfig.validate``."""
-    return not isinstance(method, str) and all(hasattr(method, m) for m in MEMBERS)
-
-
 def looks_like_optimizer(method) -> bool:
     """Whether ``method`` means to be one (has ``init``, ``ask`` or ``tell``), so that an error
     can say which member it lacks."""
