@@ -216,7 +216,7 @@ def evaluate_paths(problem: Problem, x) -> Evaluation:
     Called from the host, the same compiled program as ``fitness`` and ``violation``, so each
     field equals theirs bit for bit, at the cost of one of them. Inside a caller's ``jax.jit``
     or ``jax.vmap`` it is traced into the caller's program, a ``vmap`` folded into one batch of
-    paths (``folded_evaluate``; not reverse-differentiable there: ``fitness`` is).
+    paths (``folded_evaluate``, which is not reverse-differentiable).
 
     Args:
       problem: the problem (its ``collision`` mode decides what colliding means).

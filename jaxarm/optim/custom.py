@@ -23,8 +23,9 @@ business.
 The functions must be traceable by JAX (jax.numpy, ``jax.random``, ``lax``; no Python branches
 on values), and ``ask`` and ``tell`` must give back a state of the structure, shapes and dtypes
 that ``init`` made. The compiled program is specialised on the object, and what its functions
-read of it is compiled in at its first use: the same object (or an equal one, for a frozen
-dataclass or a NamedTuple) reuses the program; to change a setting, make a new object.
+read of it is compiled in at its first use: the same object (or an equal one, for a type that
+defines equality and a hash, as a NamedTuple does) reuses the program; to change a setting,
+make a new object.
 """
 
 from __future__ import annotations
@@ -68,8 +69,8 @@ def looks_like_optimizer(method) -> bool:
 
 class CustomConfig:
     """A user's optimiser as a method's config: the compiled search's static rule, equal and
-    hashed as the optimiser is (by its type and value when it defines them, as a frozen
-    dataclass or a NamedTuple does; else by identity)."""
+    hashed as the optimiser is (by its type and value when it defines them, as a NamedTuple
+    does; else by identity)."""
 
     __slots__ = ("optimizer",)
 
