@@ -300,6 +300,9 @@ def _add_study_command(commands) -> None:
                        help="at most this many restarts per compiled call; bounds memory and "
                             "sets how often the progress bar moves, results do not depend on "
                             "it (500)")
+    study.add_argument("--checkpoint", type=pathlib.Path, metavar="DIR",
+                       help="save each finished chunk in DIR (created if need be); the same "
+                            "command again resumes from it, to the same results")
     study.add_argument("--pairwise", action="store_true",
                        help="also print every pair's difference in escape rate (95 %% Newcombe "
                             "interval, Fisher exact p) and McNemar's exact p on the paired seeds")
@@ -546,6 +549,13 @@ def _solve(args) -> None:
 def _study(args) -> None:
     _check_outputs(args)
     _check_settings(args)
+    if args.checkpoint is not None:
+        from jaxarm.io.files import output_folder
+
+        output_folder("--checkpoint", args.checkpoint)
+        if os.environ.get("JAXARM_DISTRIBUTED") == "1" or args.coordinator is not None:
+            raise ValueError("--checkpoint works in one process: run the study without "
+                             "--coordinator (or JAXARM_DISTRIBUTED)")
     methods = split_methods(args.methods)
     if not all(methods):
         raise ValueError(f"--methods must be comma-separated names such as A,B:feasibility, "
@@ -559,7 +569,7 @@ def _study(args) -> None:
     parse_methods(methods, constraint)  # names checked before any compilation
     result = escape_study(problem, methods, n_restarts=args.restarts, n_iters=args.iters,
                           n_particles=args.particles, constraint=constraint, seed=args.seed,
-                          chunk_size=args.chunk_size)
+                          chunk_size=args.chunk_size, checkpoint=args.checkpoint)
     print(f"{problem.name}: {args.restarts} restarts x {args.particles} particles x {args.iters} "
           f"iterations, {problem.collision} collision check")
     print(result.table(pairwise=args.pairwise))
@@ -622,19 +632,24 @@ def _join_processes(args) -> bool:
 
 
 @contextlib.contextmanager
-def _compile_notices(quiet: bool):
+def _compile_notices(quiet: bool, command: str):
     """Say on stderr when one of jaxarm's programs compiles (``jaxarm._compile.timing``): a
-    first call can take minutes, and should not be a silent one. The logger is as it was
-    after the command (``main`` may be called in a notebook's or a test's process)."""
-    logger = logging.getLogger("jaxarm.compile")
-    level, handler = logger.level, _Stderr()
-    logger.setLevel(logging.WARNING if quiet else logging.INFO)
-    logger.addHandler(handler)
+    first call can take minutes, and should not be a silent one; and, for ``study``, how far
+    it is when no progress bar shows (``jaxarm.study``; the report logs its own sections).
+    The loggers are as they were after the command (``main`` may be called in a notebook's
+    or a test's process)."""
+    names = ("jaxarm.compile", "jaxarm.study") if command == "study" else ("jaxarm.compile",)
+    loggers = [logging.getLogger(name) for name in names]
+    levels, handler = [logger.level for logger in loggers], _Stderr()
+    for logger in loggers:
+        logger.setLevel(logging.WARNING if quiet else logging.INFO)
+        logger.addHandler(handler)
     try:
         yield
     finally:
-        logger.removeHandler(handler)
-        logger.setLevel(level)
+        for logger, level in zip(loggers, levels):
+            logger.removeHandler(handler)
+            logger.setLevel(level)
 
 
 class _Stderr(logging.Handler):
@@ -645,7 +660,7 @@ class _Stderr(logging.Handler):
 
 
 def _run(args) -> None:
-    with _compile_notices(args.quiet):
+    with _compile_notices(args.quiet, args.command):
         _run_command(args)
 
 
@@ -680,7 +695,9 @@ def main(argv=None) -> int:
         print(f"jaxarm: error: {message}", file=sys.stderr)
         return _leave(EXIT_ERROR)
     except KeyboardInterrupt:
-        print("jaxarm: interrupted", file=sys.stderr)
+        resume = (f"; the finished chunks are saved in {str(args.checkpoint)!r}: the same "
+                  "command resumes from them" if getattr(args, "checkpoint", None) else "")
+        print(f"jaxarm: interrupted{resume}", file=sys.stderr)
         return _leave(130)
     return 0
 

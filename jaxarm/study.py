@@ -8,8 +8,10 @@ every row can be re-run alone, bit for bit, whatever the chunking.
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import json
+import logging
 import math
 import pathlib
 import sys
@@ -22,6 +24,7 @@ from jaxarm._compile.padding import equal_chunk_length
 from jaxarm._compile.timing import compile_time
 from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import fitness
+from jaxarm.io.checkpoints import SavedRestarts, StudyCheckpoint, study_identity
 from jaxarm.io.files import text_writer, write_or_return
 from jaxarm.model.problem import Problem
 from jaxarm.optim.methods import Variant, parse_methods, swarm_size
@@ -250,11 +253,12 @@ class Study(NamedTuple):
 
 
 CHUNK_SIZE = 500  # seeds per compiled call of ``escape_study`` unless told
+LOGGER = logging.getLogger("jaxarm.study")
 
 
 def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_restarts: int = 500,
                  n_iters: int = N_ITERS, n_particles: int | None = None, constraint: str = "death",
-                 seed: int = 0, chunk_size: int = CHUNK_SIZE,
+                 seed: int = 0, chunk_size: int = CHUNK_SIZE, checkpoint=None,
                  progress: bool | None = None) -> Study:
     """How often each method escapes zero fitness, over ``n_restarts`` independent seeds.
 
@@ -272,8 +276,15 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
       chunk_size: at most this many restarts per compiled call; the restarts are split into
         chunks of equal length (``padding.equal_chunk_length``; one program for all of them).
         Bounds memory and sets how often the progress bar moves; results do not depend on it.
-      progress: show a progress bar (it moves once per chunk and says when a call compiles);
-        default: when stderr is a terminal.
+      checkpoint: a folder (created if need be) where each finished chunk is saved
+        (``jaxarm.io.checkpoints``); the same call again, after an interruption, resumes
+        from the saved chunks and returns the same bits as an uninterrupted run. Another
+        chunk size or number of restarts may resume it too; a checkpoint of another problem,
+        method list, swarm, seed or version is refused with a ValueError naming what differs.
+      progress: show a progress bar with the estimated time left (it moves once per chunk and
+        says when a call compiles); default: when stderr is a terminal. Without the bar, a
+        study of several chunks logs each finished chunk and the time left on the
+        ``jaxarm.study`` logger (INFO; the ``jaxarm`` command shows it on stderr).
 
     Returns:
       ``Study``.
@@ -290,39 +301,100 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
     chunk_size = positive_int("chunk_size", chunk_size)
     check_search(n_particles=n_particles, n_iters=n_iters, seed=seed, constraint=constraint,
                  restarts_at_once=equal_chunk_length(n_restarts, chunk_size))
-    if progress is None:
-        progress = sys.stderr.isatty()
-    bar = _progress_bar(len(variants) * n_restarts, problem.name, progress)
-    size = equal_chunk_length(n_restarts, chunk_size)
-    results = []
-    for variant in variants:
-        bar.set_description(f"{problem.name} {variant.label}")
-        began = time.perf_counter()
-        parts = []
-        with compile_time() as compiling_time:
-            for start in range(0, n_restarts, size):
-                compiling = not is_compiled(problem, variant.config, n_particles, n_iters, size)
-                bar.set_postfix_str("compiling" if compiling else "")
-                # every chunk runs ``size`` restarts (one program); the last keeps what it needs
-                keep = min(size, n_restarts - start)
-                outcome = run_restarts(problem, variant.config, variant.constraint,
-                                       n_particles=n_particles, n_iters=n_iters, seed=seed,
-                                       first_restart=start, n_restarts=size)
-                parts.append(RestartOutcome(*(field[:keep] for field in outcome)))
-                bar.update(keep)
-        results.append(MethodStudy(variant=variant, restart_ids=np.arange(n_restarts),
-                                   outcome=parts[0].concatenate(*parts[1:]),
-                                   seconds=time.perf_counter() - began,
-                                   compile_seconds=compiling_time.seconds))
+    store = None if checkpoint is None else StudyCheckpoint.open(checkpoint, study_identity(
+        problem, variants, n_particles=n_particles, n_iters=n_iters, seed=seed))
+    saved = [store.saved(index, n_restarts) if store else SavedRestarts(None, 0, 0.0, 0.0)
+             for index in range(len(variants))]
+    bar = _StudyProgress(problem.name, len(variants) * n_restarts,
+                         done=sum(s.count for s in saved),
+                         shown=sys.stderr.isatty() if progress is None else progress)
+    run = dict(n_particles=n_particles, n_iters=n_iters, seed=seed,
+               size=equal_chunk_length(n_restarts, chunk_size))
+    results = tuple(_method_study(problem, variant, n_restarts, saved[index], bar,
+                                  save=store and functools.partial(store.save, index), **run)
+                    for index, variant in enumerate(variants))
     bar.close()
-    return Study(problem.name, problem.collision, n_particles, n_iters, seed, tuple(results))
+    return Study(problem.name, problem.collision, n_particles, n_iters, seed, results)
 
 
-def _progress_bar(total: int, label: str, enabled: bool):
+def _method_study(problem: Problem, variant: Variant, n_restarts: int, saved: SavedRestarts,
+                  bar: _StudyProgress, *, n_particles: int, n_iters: int, seed: int, size: int,
+                  save) -> MethodStudy:
+    """One method's restarts after the ``saved`` ones, chunk by chunk, each chunk ``save``d
+    (when given) as it finishes."""
+    bar.describe(variant.label)
+    parts = [] if saved.outcome is None else [saved.outcome]
+    seconds, compiling = saved.seconds, saved.compile_seconds
+    for start in range(saved.count, n_restarts, size):
+        began = time.perf_counter()
+        bar.compiling(not is_compiled(problem, variant.config, n_particles, n_iters, size))
+        with compile_time() as chunk_compiling:
+            # every chunk runs ``size`` restarts (one program); the last keeps what it needs
+            outcome = run_restarts(problem, variant.config, variant.constraint,
+                                   n_particles=n_particles, n_iters=n_iters, seed=seed,
+                                   first_restart=start, n_restarts=size)
+            part = RestartOutcome(*(np.asarray(field)[:n_restarts - start] for field in outcome))
+        chunk_seconds = time.perf_counter() - began
+        if save:
+            save(start, part, chunk_seconds, chunk_compiling.seconds)
+        parts.append(part)
+        seconds, compiling = seconds + chunk_seconds, compiling + chunk_compiling.seconds
+        bar.finished(len(part.best_fitness), seconds=chunk_seconds - chunk_compiling.seconds,
+                     restarts_run=size)
+    return MethodStudy(variant=variant, restart_ids=np.arange(n_restarts),
+                       outcome=parts[0].concatenate(*parts[1:]), seconds=seconds,
+                       compile_seconds=compiling)
+
+
+class _StudyProgress:
+    """A study's progress: a bar with the time left on a terminal, else a line per finished
+    chunk on the ``jaxarm.study`` logger (when the study has more than one chunk)."""
+
+    def __init__(self, name: str, total: int, *, done: int, shown: bool):
+        self.name, self.total, self.done, self.shown = name, total, done, shown
+        self.bar = _progress_bar(total, name, shown, initial=done)
+        self.label = ""
+        if done:
+            LOGGER.info("%s: resuming from the checkpoint, %s of %s seeds saved", name,
+                        f"{done:,}", f"{total:,}")
+
+    def describe(self, label: str) -> None:
+        self.label = label
+        self.bar.set_description(f"{self.name} {label}")
+
+    def compiling(self, compiling: bool) -> None:
+        self.bar.set_postfix_str("compiling" if compiling else "")
+
+    def finished(self, count: int, *, seconds: float, restarts_run: int) -> None:
+        """``count`` more seeds done, in a chunk that ran ``restarts_run`` restarts in
+        ``seconds`` apart from compiling: the time left assumes the rest run as fast."""
+        self.done += count
+        self.bar.update(count)
+        if self.shown or count == self.total:  # shown by the bar, or a one-chunk study
+            return
+        left = (self.total - self.done) * seconds / restarts_run
+        LOGGER.info("%s %s: %s of %s seeds, %s", self.name, self.label, f"{self.done:,}",
+                    f"{self.total:,}", f"about {_duration(left)} left" if left else "done")
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def _progress_bar(total: int, label: str, enabled: bool, initial: int = 0):
     from tqdm import tqdm  # text bar: tqdm.auto warns in notebooks without ipywidgets
 
-    return tqdm(total=total, desc=label, unit="seed", disable=not enabled, file=sys.stderr,
-                leave=False)
+    return tqdm(total=total, initial=initial, desc=label, unit="seed", disable=not enabled,
+                file=sys.stderr, leave=False)
+
+
+def _duration(seconds: float) -> str:
+    """``seconds`` as "2 h 05 min", "3 min 20 s" or "40 s"."""
+    seconds = round(seconds)
+    if seconds >= 3600:
+        return f"{seconds // 3600} h {seconds % 3600 // 60:02d} min"
+    if seconds >= 60:
+        return f"{seconds // 60} min {seconds % 60:02d} s"
+    return f"{max(seconds, 1)} s"
 
 
 def sweep_coefficient(problem: Problem, x, index: int, values) -> np.ndarray:

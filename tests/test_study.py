@@ -97,7 +97,7 @@ class RecordingBar:
 
 def test_progress_moves_per_chunk_and_says_when_it_compiles(case2, monkeypatch):
     bar = RecordingBar()
-    monkeypatch.setattr(study, "_progress_bar", lambda total, label, enabled: bar)
+    monkeypatch.setattr(study, "_progress_bar", lambda *args, **kwargs: bar)
     sizes = dict(n_particles=5, n_iters=7)  # a program no other test compiles
     study.escape_study(case2, ["A", "C"], n_restarts=9, chunk_size=5, progress=True, **sizes)
     # two chunks of 5 and 4 seeds, one program: A compiles it, C (same rules) reuses it
