@@ -112,6 +112,9 @@ def test_a_folder_that_is_no_checkpoint_or_a_broken_chunk_is_named(case2, tmp_pa
     (folder / "study.json").write_text("{}")
     with pytest.raises(ValueError, match="study.json is not a jaxarm study checkpoint"):
         study.escape_study(case2, ["A"], n_restarts=2, checkpoint=folder, **SIZES)
+    for wrong in ("", 3):
+        with pytest.raises(ValueError, match=f"checkpoint must be a folder's path, got {wrong!r}"):
+            study.escape_study(case2, ["A"], n_restarts=2, checkpoint=wrong, **SIZES)
     with pytest.raises(ValueError, match=r"checkpoint '.*notes.txt' is a file, not a folder"):
         study.escape_study(case2, ["A"], n_restarts=2, checkpoint=tmp_path / "notes.txt",
                            **SIZES)

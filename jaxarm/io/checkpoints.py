@@ -13,6 +13,7 @@ gap and runs the rest. A checkpoint of another study is refused, naming what dif
 from __future__ import annotations
 
 import json
+import os
 import pathlib
 import re
 from typing import NamedTuple, Sequence
@@ -87,6 +88,8 @@ class StudyCheckpoint:
           ValueError: naming the folder: not writable, not a checkpoint, or the checkpoint of
             another study (naming what differs).
         """
+        if not isinstance(folder, (str, os.PathLike)) or not os.fspath(folder):
+            raise ValueError(f"checkpoint must be a folder's path, got {folder!r}")
         folder = output_folder("checkpoint", folder)
         manifest = folder / MANIFEST
         if manifest.is_file():
