@@ -61,10 +61,8 @@ def _fit_title(ax, text: str) -> None:
 
 def draw_world(ax, world) -> None:
     """Draw a ``World``'s obstacles on ``ax``."""
-    for x, y, radius in world.circles:
-        ax.add_patch(patches.Circle((x, y), radius, **OBSTACLE_STYLE))
-    for vertices in world.polygon_vertices():
-        ax.add_patch(patches.Polygon(vertices, closed=True, **OBSTACLE_STYLE))
+    for index in range(world.n_obstacles):
+        ax.add_patch(_obstacle_patch(world, index, **OBSTACLE_STYLE))
 
 
 def _one_path(problem: Problem, x) -> np.ndarray:
@@ -157,8 +155,10 @@ def _obstacle_patch(world, index: int, **style):
     if index < len(world.circles):
         x, y, radius = world.circles[index]
         return patches.Circle((x, y), radius, **style)
-    return patches.Polygon(world.polygon_vertices()[index - len(world.circles)], closed=True,
-                           **style)
+    vertices = world.polygon_vertices()[index - len(world.circles)]
+    if len(vertices) == 2:  # a segment: a wall of zero thickness, drawn as a thick line
+        style = style | {"linewidth": max(style.get("linewidth", 1.0), 2.5)}
+    return patches.Polygon(vertices, closed=True, **style)
 
 
 def plot_clearance(problem: Problem, x, n_points: int = 401, ax=None,

@@ -45,6 +45,54 @@ def test_certify_is_sound_and_tight_against_a_dense_oracle(rng):
     assert np.sum(deep & ~colliding) <= 0.01 * deep.sum()
 
 
+def test_walls_of_zero_thickness_are_never_crossed_by_a_free_path(rng):
+    """Segments at any angle: no path called free crosses one (or comes inside a circle) at
+    any of 4,001 instants (shapely); the paths clear by 2 tol are certified."""
+    clearances, free = [], []
+    for _ in range(10):
+        problem = thin_wall_problem(rng, wall="segment")
+        x = rng.uniform(-60, 60, (64, problem.n_free))
+        sampled = np.asarray(jaxarm.violation(problem.replace(collision="sampled"), x)) == 0
+        rows = np.concatenate([np.nonzero(sampled)[0][:6], np.nonzero(~sampled)[0][:2]])
+        certificate = jaxarm.certify(problem, x[rows])
+        assert not np.any(np.asarray(certificate.free) & np.asarray(certificate.colliding))
+        clearances.append(dense_clearance(problem, x[rows], 4001))
+        free.append(np.asarray(certificate.free))
+    clearance, free = map(np.concatenate, (clearances, free))
+    assert not np.any(free & (clearance < 0)), clearance[free & (clearance < 0)]
+    clear = clearance >= 0.02
+    assert clear.sum() > 20 and free[clear].mean() >= 0.95, (clear.sum(), free[clear].mean())
+
+
+@pytest.mark.parametrize("margin", [0.0, pytest.param(1.0, marks=pytest.mark.slow)])
+def test_the_thin_wall_as_a_segment_is_solved_and_proved_to_the_edge(margin):
+    """thin-wall rebuilt from a segment: the default search certifies a path, and the
+    certified check holds on paths bisected from it to the edge of what it proves, towards a
+    path through the wall (shapely, 20,001 instants)."""
+    wall = jaxarm.load_scenario("thin-wall")
+    (low, high), = wall.world.boxes
+    middle = 0.5 * (low[1] + high[1])
+    problem = wall.replace(world=jaxarm.World(segments=[((low[0], middle), (high[0], middle))]),
+                           margin=margin)
+    result = jaxarm.solve(problem, n_restarts=64, max_stages=2, progress=False)
+    assert result.certified and jaxarm.certify(problem, result.best_x).free
+    best = np.asarray(result.best_x, np.float64)
+    others = np.random.default_rng(5).uniform(-150, 150, (64, problem.n_free))
+    through = others[np.argmax(dense_clearance(problem, others, 2001) < 0)]  # crosses the wall
+    assert dense_clearance(problem, through[None], 2001)[0] < 0
+    inside, outside = 0.0, 1.0  # fractions of the way from best to through: free, not free
+    for _ in range(24):
+        middle = 0.5 * (inside + outside)
+        x = (best + middle * (through - best)).astype(np.float32)
+        if jaxarm.certify(problem, x).free:
+            inside = middle
+        else:
+            outside = middle
+    edge = (best + inside * (through - best)).astype(np.float32)
+    assert jaxarm.certify(problem, edge).free
+    assert dense_clearance(problem, edge[None], 20001)[0] >= margin - 1e-4
+
+
 def test_certified_is_sound_and_not_too_conservative_against_a_dense_check(rng):
     certified_free = sampled_free = certified_of_dense_free = dense_free = 0
     missed_by_sampling = 0

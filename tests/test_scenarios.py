@@ -123,6 +123,12 @@ def test_load_from_path_with_pose_and_overrides(tmp_path):
          "[goal]\njoints = [1]", r"start joint 1 is 0.0 rad, outside joint_limits\[0\]"),
         ("[arm]\nlengths = [30.0]\ngravity = -1\n[start]\njoints = [0]\n[goal]\njoints = [1]",
          r"arm.gravity must be >= 0"),
+        (MINIMAL + "[[obstacles]]\ntype = 'segment'\npoints = [[0, 50], [0, 50]]",
+         r"bad.toml: obstacles\[0\] needs two distinct points"),
+        (MINIMAL + "[[obstacles]]\ntype = 'segment'\nvertices = [[0, 50], [1, 50]]",
+         r"unknown key in obstacles\[0\]: 'vertices'"),
+        (MINIMAL + "[[obstacles]]\ntype = 'wall'", r"obstacles\[0\].type must be circle, box, "
+         r"polygon, segment or map, got 'wall'"),
     ],
 )
 def test_malformed_scenarios_name_the_file_and_key(tmp_path, text, message):
@@ -161,7 +167,8 @@ def test_every_problem_written_as_a_scenario_loads_back_equal(tmp_path):
         description="built in code", capacities=(4, 4, 8), margin=0.25, certify_tol=0.005,
         certify_budget=300,
         world=jaxarm.World(circles=[(40.0, 30.0, 3.3)], boxes=[((-40.0, 20.0), (-30.0, 25.0))],
-                           polygons=[[(-10.0, 50.0), (-20.0, 60.0), (-5.0, 70.0)]])))
+                           polygons=[[(-10.0, 50.0), (-20.0, 60.0), (-5.0, 70.0)]],
+                           segments=[((10.0, 40.0), (20.5, 41.0))])))
     for problem in problems:
         path = jaxarm.save_scenario(problem, tmp_path / f"{problem.name}.toml")
         assert jaxarm.load_scenario(path) == problem, problem.name

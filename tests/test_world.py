@@ -41,6 +41,11 @@ def segment_overlap_depth(start, end, world):
         (dict(boxes=[((0.0, 0.0), (2e5, 1.0))]), r"world.boxes\[0\].max\[0\] must be within"),
         (dict(polygons=[[(0, 0), (1e39, 0), (0, 1)]]),
          r"world.polygons\[0\].vertices\[1\]\[0\] must be within \+-100000 cm"),
+        (dict(segments=[((0, 0), (1, 1), (2, 2))]),
+         r"world.segments\[0\] must be two points \(\(x0, y0\), \(x1, y1\)\)"),
+        (dict(segments=[((1.0, 2.0), (1.0, 2.0))]), r"world.segments\[0\] needs two distinct"),
+        (dict(segments=[((0, 0), (float("nan"), 1))]), r"world.segments\[0\] points must be fin"),
+        (dict(segments=[((0, 0), (3e5, 1))]), r"world.segments\[0\].points\[1\]\[0\] must be"),
     ],
 )
 def test_bad_worlds(world, message):
@@ -102,3 +107,23 @@ def test_segment_parallel_to_a_box_side(offset, collides):
     assert (depth[1].sum() > 0) == collides
     _, hit = oracle_separation(world, np.asarray(start), np.asarray(end))
     assert hit[1] == collides
+
+
+@pytest.mark.parametrize("end, depth", [
+    ((5.0, 3.0), 3.0),  # crosses the wall: 3 cm from clearing it along the wall's normal
+    ((9.5, -10.0), 0.0),  # touches its end point alone: open sets, no penetration
+    ((5.0, -0.5), 0.0),  # stops short of it: its distance
+])
+def test_a_segment_is_a_wall_of_zero_thickness(end, depth):
+    """A link from (5, -4) against the wall from (0, 0) to (10, 0): crossing it penetrates by
+    the nearer of the link's ends beyond the wall's line or the wall's ends beyond the
+    link's; grazing it does not; apart, the distance."""
+    world = jaxarm.World(segments=[((0.0, 0.0), (10.0, 0.0))])
+    start = np.array([[5.0, -4.0]]) if end != (9.5, -10.0) else np.array([[10.0, 0.0]])
+    separation = float(segment_separation(jnp.asarray(start), jnp.asarray([end]),
+                                          world.pack())[0, 0])
+    distance, hit = oracle_separation(world, start, np.array([end]))
+    assert hit[0] == (depth > 0)
+    assert separation == pytest.approx(-depth if depth > 0 else max(float(distance[0]), 0.0),
+                                       abs=1e-5)
+    assert world.obstacle_name(0) == "segments[0]" and world.capacities() == (0, 1, 2)

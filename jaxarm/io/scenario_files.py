@@ -30,6 +30,7 @@ Schema (units: cm and rad)::
     type = "circle"                    # center = [x, y], radius = r
     type = "box"                       # min = [xmin, ymin], max = [xmax, ymax]
     type = "polygon"                   # vertices = [[x, y], ...], convex, either order
+    type = "segment"                   # points = [[x0, y0], [x1, y1]]: a wall of zero thickness
     type = "map"                       # file = "room.yaml": a ROS map_server occupancy map,
                                        #   relative to the scenario file; unknown = "occupied"
                                        #   (default) or "free" (``jaxarm.io.occupancy_maps``)
@@ -82,6 +83,7 @@ _OBSTACLE_KEYS = {
     "circle": {"type", "center", "radius"},
     "box": {"type", "min", "max"},
     "polygon": {"type", "vertices"},
+    "segment": {"type", "points"},
     "map": {"type", "file", "unknown"},
 }
 _REQUIRED_KEYS = {"map": {"type", "file"}}
@@ -222,15 +224,16 @@ def _obstacles(entries, folder: pathlib.Path) -> tuple[World, dict[str, str]]:
     read relative to ``folder``."""
     if not isinstance(entries, list):
         raise ScenarioError(f"obstacles must be an array of tables, got {entries!r}")
-    circles, boxes, polygons = [], [], []
+    circles, boxes, polygons, segments = [], [], [], []
     kinds = {"circle": ("circles", circles), "box": ("boxes", boxes),
-             "polygon": ("polygons", polygons)}
+             "polygon": ("polygons", polygons), "segment": ("segments", segments)}
     names = {}
     for index, entry in enumerate(entries):
         where = f"obstacles[{index}]"
         kind = entry.get("type") if isinstance(entry, dict) else None
         if kind not in _OBSTACLE_KEYS:
-            raise ScenarioError(f"{where}.type must be circle, box, polygon or map, got {kind!r}")
+            raise ScenarioError(f"{where}.type must be circle, box, polygon, segment or map, got "
+                                f"{kind!r}")
         _unknown(entry, _OBSTACLE_KEYS[kind], f"in {where}: ")
         missing = sorted(_REQUIRED_KEYS.get(kind, _OBSTACLE_KEYS[kind]) - set(entry))
         if missing:
@@ -256,13 +259,15 @@ def _obstacles(entries, folder: pathlib.Path) -> tuple[World, dict[str, str]]:
                     boxes.append(world_lib.check_box(where, box))
                     names[f"boxes[{len(boxes) - 1}]"] = f"{where} (box {number} of {file})"
                 continue
+            elif kind == "segment":
+                segments.append(world_lib.check_segment(where, entry["points"]))
             else:
                 polygons.append(world_lib.check_polygon(where, entry["vertices"]))
         except (ValueError, TypeError) as error:
             raise ScenarioError(str(error)) from None
         field, added = kinds[kind]
         names[f"{field}[{len(added) - 1}]"] = where
-    return World(circles=circles, boxes=boxes, polygons=polygons), names
+    return World(circles=circles, boxes=boxes, polygons=polygons, segments=segments), names
 
 
 def _problem(data: dict, default_name: str, folder: pathlib.Path = pathlib.Path(".")) -> Problem:
@@ -289,7 +294,7 @@ def _problem(data: dict, default_name: str, folder: pathlib.Path = pathlib.Path(
     except ValueError as error:  # named as the file names it: search.samples, not n_samples,
         message = renamed(str(error), _FIELD_KEYS)  # and obstacles[3], not boxes[0]
         if obstacle_names:
-            message = re.sub(r"\b(circles|boxes|polygons)\[\d+\]",
+            message = re.sub(r"\b(circles|boxes|polygons|segments)\[\d+\]",
                              lambda m: obstacle_names.get(m.group(), m.group()), message)
         raise ScenarioError(message) from None
 
@@ -311,7 +316,9 @@ def scenario_table(problem: Problem) -> dict:
                  + [{"type": "box", "min": list(low), "max": list(high)}
                     for low, high in world.boxes]
                  + [{"type": "polygon", "vertices": [list(v) for v in polygon]}
-                    for polygon in world.polygons])
+                    for polygon in world.polygons]
+                 + [{"type": "segment", "points": [list(p) for p in segment]}
+                    for segment in world.segments])
     plain = (lambda v: list(v) if isinstance(v, tuple) else v)  # TOML arrays from tuples
     return {
         "name": problem.name,

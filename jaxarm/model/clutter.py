@@ -15,7 +15,7 @@ import numpy as np
 from jaxarm._validate import check_seed, finite_vector, positive_int
 from jaxarm.choices import CLUTTER_KINDS, one_of
 from jaxarm.model.problem import Problem
-from jaxarm.model.world import World
+from jaxarm.model.world import OBSTACLE_KINDS, World
 
 CLEAR_PATH_SAMPLES = 1001  # instants of ``clear_path`` kept clear
 # Draws per obstacle before giving up: a scene whose postures leave too little room fails
@@ -84,8 +84,8 @@ def clutter(problem: Problem, count: int, kind: str = "circles", size=(1.0, 3.0)
             radii.append(radius)
     added = _shapes(kind, np.array(centres), np.array(radii), rng)
     world = problem.world
-    grown = World(circles=world.circles + added.circles, boxes=world.boxes + added.boxes,
-                  polygons=world.polygons + added.polygons)
+    grown = World(**{kind: getattr(world, kind) + getattr(added, kind)
+                     for kind in OBSTACLE_KINDS})
     return problem.replace(world=grown, capacities=None, name=f"{problem.name}+{count} {kind}",
                            description=f"{problem.name} with {count} random {kind} of size "
                            f"{low:g}-{high:g} cm (seed {seed})")

@@ -318,7 +318,8 @@ class Problem:
                 f"  start    {np.round(self.start, 4).tolist()} rad",
                 f"  goal     {np.round(self.goal, 4).tolist()} rad",
                 f"  world    {len(world.circles)} circles, {len(world.boxes)} boxes, "
-                f"{len(world.polygons)} polygons",
+                f"{len(world.polygons)} polygons"
+                + (f", {len(world.segments)} segments" if world.segments else ""),
                 f"  path     degree {self.degree} ({self.n_free} free coefficients), "
                 f"{self.n_samples} samples, {self.collision} collision check"
                 + (f", margin {self.margin:g} cm" if self.margin else ""),

@@ -1,9 +1,12 @@
-"""Obstacle worlds: circles, axis-aligned boxes and convex polygons, packed as data.
+"""Obstacle worlds: circles, axis-aligned boxes, convex polygons and segments, packed as data.
 
 A ``World`` is validated once and packed into fixed-capacity arrays with validity masks
 (``WorldArrays``), so a new obstacle layout with the same capacities reuses compiled code.
-Boxes become 4-vertex polygons. Obstacles are open sets: a link that only grazes an obstacle's
-boundary (zero penetration) does not collide, so "collision-free" and "zero penetration" agree.
+Boxes become 4-vertex polygons and segments (walls of zero thickness) 2-vertex ones, whose
+two edges run both ways along the wall. Obstacles are open sets: a link that only grazes an
+obstacle's boundary (zero penetration) does not collide, so "collision-free" and "zero
+penetration" agree. A link that crosses a segment penetrates it: by the smaller distance it
+would have to move along either axis, the wall's normal or its own, to clear it.
 
 Geometry kernel: the signed separation between a segment and each obstacle, positive (the
 Euclidean distance) when disjoint and minus the penetration depth when they overlap.
@@ -50,6 +53,9 @@ POLYGON_FIELDS = ("vertices", "normals", "extent_low", "extent_high", "edge_vali
                   "polygon_valid")
 
 
+OBSTACLE_KINDS = ("circles", "boxes", "polygons", "segments")  # ``World``'s order
+
+
 def slot_capacity(count: int) -> int:
     """0 for none (the kernel for that shape is skipped), else the smallest power of two >=
     count: layouts of similar size share one program (the added obstacles of
@@ -65,6 +71,7 @@ class World:
       circles: ``(x, y, radius)`` triples, radius > 0.
       boxes: ``((xmin, ymin), (xmax, ymax))`` pairs with min < max on both axes.
       polygons: convex polygons, each a list of >= 3 ``(x, y)`` vertices in either order.
+      segments: walls of zero thickness, ``((x0, y0), (x1, y1))`` pairs of distinct points.
 
     Examples:
       >>> world = jaxarm.World(circles=[(40.0, 4.5, 6.7)], boxes=[((10.0, -5.0), (20.0, 5.0))])
@@ -75,22 +82,21 @@ class World:
     circles: tuple = ()
     boxes: tuple = ()
     polygons: tuple = ()
+    segments: tuple = ()
 
     def __post_init__(self):
-        circles = tuple(check_circle(f"world.circles[{i}]", c) for i, c in enumerate(self.circles))
-        boxes = tuple(check_box(f"world.boxes[{i}]", b) for i, b in enumerate(self.boxes))
-        polygons = tuple(check_polygon(f"world.polygons[{i}]", p)
-                         for i, p in enumerate(self.polygons))
-        object.__setattr__(self, "circles", circles)
-        object.__setattr__(self, "boxes", boxes)
-        object.__setattr__(self, "polygons", polygons)
+        for kind, check in (("circles", check_circle), ("boxes", check_box),
+                            ("polygons", check_polygon), ("segments", check_segment)):
+            object.__setattr__(self, kind, tuple(
+                check(f"world.{kind}[{i}]", value) for i, value in enumerate(getattr(self, kind))))
 
     @property
     def n_obstacles(self) -> int:
-        return len(self.circles) + len(self.boxes) + len(self.polygons)
+        return sum(len(getattr(self, kind)) for kind in OBSTACLE_KINDS)
 
     def polygon_vertices(self) -> list[np.ndarray]:
-        """Boxes then polygons as counter-clockwise vertex arrays, each shape (n_vertices, 2)."""
+        """Boxes, polygons (counter-clockwise) then segments as vertex arrays, each shape
+        (n_vertices, 2): a polygon slot each."""
         out = []
         for (xmin, ymin), (xmax, ymax) in self.boxes:
             out.append(np.array([[xmin, ymin], [xmax, ymin], [xmax, ymax], [xmin, ymax]]))
@@ -99,6 +105,7 @@ class World:
             if _signed_area(vertices) < 0:
                 vertices = vertices[::-1]
             out.append(vertices)
+        out += [np.asarray(segment, dtype=np.float64) for segment in self.segments]
         return out
 
     def capacities(self) -> tuple[int, int, int]:
@@ -111,9 +118,9 @@ class World:
                 max((len(p) for p in polygons), default=4))
 
     def obstacle_name(self, index: int) -> str:
-        """The name of obstacle ``index`` in ``World``'s order (circles, boxes, polygons):
-        ``"boxes[2]"``."""
-        for kind in ("circles", "boxes", "polygons"):
+        """The name of obstacle ``index`` in ``World``'s order (circles, boxes, polygons,
+        segments): ``"boxes[2]"``."""
+        for kind in OBSTACLE_KINDS:
             count = len(getattr(self, kind))
             if 0 <= index < count:
                 return f"{kind}[{index}]"
@@ -124,8 +131,8 @@ class World:
         """Obstacle name of every slot of a packing (circle slots, then polygon slots)."""
         n_circle_slots, n_polygon_slots, _ = capacities
         circles = [f"circles[{i}]" for i in range(len(self.circles))]
-        polygons = [f"boxes[{i}]" for i in range(len(self.boxes))]
-        polygons += [f"polygons[{i}]" for i in range(len(self.polygons))]
+        polygons = [f"{kind}[{i}]" for kind in OBSTACLE_KINDS[1:]
+                    for i in range(len(getattr(self, kind)))]
         pad = lambda names, n: names + [None] * (n - len(names))  # noqa: E731
         return pad(circles, n_circle_slots) + pad(polygons, n_polygon_slots)
 
@@ -233,6 +240,23 @@ def check_polygon(field: str, polygon) -> tuple[tuple[float, float], ...]:
     if abs(abs(total_turn) - 2 * np.pi) > 1e-6:
         raise ValueError(f"{field} is not a simple convex polygon (it winds twice): {polygon!r}")
     return tuple((float(x), float(y)) for x, y in vertices)
+
+
+def check_segment(field: str, segment) -> tuple[tuple[float, float], tuple[float, float]]:
+    """``((x0, y0), (x1, y1))`` as floats, two distinct points, or a ValueError naming
+    ``field``."""
+    try:
+        points = np.asarray(segment, dtype=np.float64)
+    except (TypeError, ValueError):
+        points = None
+    if points is None or points.shape != (2, 2):
+        raise ValueError(f"{field} must be two points ((x0, y0), (x1, y1)), got {segment!r}")
+    if not np.all(np.isfinite(points)):
+        raise ValueError(f"{field} points must be finite, got {segment!r}")
+    representable(f"{field}.points", points, MAX_CM, " cm")
+    if np.all(points[0] == points[1]):
+        raise ValueError(f"{field} needs two distinct points, got {segment!r}")
+    return tuple((float(x), float(y)) for x, y in points)
 
 
 def leading_slots(values, ndim: int):
