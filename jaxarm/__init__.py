@@ -35,7 +35,7 @@ __version__ = "0.1.0"
 # public name -> the module that defines it
 _EXPORTS = {
     "Arm": "jaxarm.model.arm",
-    "inverse_kinematics": "jaxarm.model.arm",
+    "inverse_kinematics": "jaxarm.model.poses",
     "joint_positions": "jaxarm.model.arm",
     "enable_compilation_cache": "jaxarm._compile.cache",
     "COLLISION_MODES": "jaxarm.choices",

@@ -51,12 +51,56 @@ def test_inverse_kinematics_round_trips(x, y, phi, elbow):
 def test_inverse_kinematics_errors():
     with pytest.raises(ValueError, match=r"pose \(x=100, y=0, phi=0\) is unreachable"):
         jaxarm.inverse_kinematics(ARM, 100, 0, 0)
-    with pytest.raises(ValueError, match=r"needs a 3-link arm.* 2 links"):
+    with pytest.raises(ValueError, match=r"needs an arm of 3 or more links, got arm.lengths "
+                                         r"with 2; give the joints"):
         jaxarm.inverse_kinematics(jaxarm.Arm((1.0, 1.0)), 1, 0, 0)
     with pytest.raises(ValueError, match=r"pose.elbow must be \+1 or -1, got 0"):
         jaxarm.inverse_kinematics(ARM, 50, 0, 0, elbow=0)
     with pytest.raises(ValueError, match=r"pose \(x=1e\+300, y=0, phi=0\) is unreachable"):
         jaxarm.inverse_kinematics(ARM, 1e300, 0, 0)  # no OverflowError squaring it
+
+
+@pytest.mark.parametrize("n_links", [4, 5, 10])
+def test_poses_of_longer_arms_round_trip(rng, n_links):
+    """Random reachable poses (those of random postures): ``joint_positions`` of the solution
+    (float32, as the search computes) reaches each within 1e-4 cm and 1e-6 rad."""
+    arm = jaxarm.Arm(tuple(rng.uniform(5, 25, n_links)))
+    for _ in range(8):
+        posture = rng.uniform(-2, 2, n_links)
+        end = np.asarray(jaxarm.joint_positions(arm.lengths, posture.astype(np.float64)))[-1]
+        phi = float(np.sum(posture))
+        for elbow in (1, -1):
+            theta = jaxarm.inverse_kinematics(arm, *end, phi, elbow)
+            reached = np.asarray(jaxarm.joint_positions(arm.lengths, theta.astype(np.float32)))
+            np.testing.assert_allclose(reached[-1], end, atol=1e-4)
+            assert math.remainder(theta.sum() - phi, 2 * math.pi) == pytest.approx(0, abs=1e-6)
+
+
+def test_a_redundant_arm_takes_the_solution_near_the_posture_given(rng):
+    arm = jaxarm.Arm((20.0,) * 6)
+    for _ in range(5):
+        posture = rng.uniform(-1.5, 1.5, 6)
+        with jax.enable_x64(True):
+            end = np.asarray(jaxarm.joint_positions(arm.lengths, posture))[-1]
+        near = posture + rng.normal(0, 0.05, 6)
+        theta = jaxarm.inverse_kinematics(arm, *end, posture.sum(), near=near)
+        assert np.abs(theta - posture).max() < 0.1  # the posture itself, not another one
+        far = jaxarm.inverse_kinematics(arm, *end, posture.sum(), near=-posture)
+        with jax.enable_x64(True):
+            np.testing.assert_allclose(np.asarray(jaxarm.joint_positions(arm.lengths, far))[-1],
+                                       end, atol=1e-7)
+
+
+def test_poses_of_longer_arms_refuse_what_they_cannot_reach():
+    arm = jaxarm.Arm((10.0,) * 10)
+    with pytest.raises(ValueError, match=r"pose \(x=101, y=0, phi=0\) is unreachable: the wrist at "
+                                         r"\(91, 0\) is 91 cm from the base, outside \[0, 90\]"):
+        jaxarm.inverse_kinematics(arm, 101, 0, 0)
+    with pytest.raises(ValueError, match=r"pose.near must have 10 values, got 3"):
+        jaxarm.inverse_kinematics(arm, 50, 0, 0, near=[0, 0, 0])
+    hooked = jaxarm.Arm((50.0, 5.0, 5.0, 5.0))  # the wrist cannot come within 35 cm of the base
+    with pytest.raises(ValueError, match=r"outside \[40, 60\]"):
+        jaxarm.inverse_kinematics(hooked, 0.0, 10.0, 0.0)
 
 
 def test_float32_sincos_is_accurate_over_a_wide_range():

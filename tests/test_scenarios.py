@@ -66,9 +66,12 @@ def test_load_from_path_with_pose_and_overrides(tmp_path):
         ("[arm]\nlengths = [30.0]\n[start]\njoints = [0]\n[goal]\njoints = [1]\n"
          "[search]\nsamples = 100", r"bad.toml: search.samples must be odd for Simpson's rule, "
                                     r"got 100$"),
-        ("[arm]\nlengths = [30.0, 30.0, 20.0, 10.0]\n[start]\npose = {x = 50.0, y = 0.0}\n"
-         "[goal]\njoints = [1, 0, 0, 0]", r"start.pose needs a 3-link arm \(inverse kinematics\), "
-                                         r"got arm.lengths with 4 links; give start.joints"),
+        ("[arm]\nlengths = [30.0, 30.0]\n[start]\npose = {x = 50.0, y = 0.0}\n"
+         "[goal]\njoints = [1, 0]", r"start.pose: a pose \(x, y, phi\) needs an arm of 3 or more "
+                                   r"links, got arm.lengths with 2; give the joints"),
+        ("[arm]\nlengths = [30.0, 30.0, 20.0, 10.0]\n[start]\npose = {x = 50.0, y = 0.0, "
+         "near = [0, 1]}\n[goal]\njoints = [1, 0, 0, 0]",
+         r"start.pose.near must have 4 values, got 2"),
         (MINIMAL + f"[search]\ndegree = {MAX_DEGREE + 1}",
          rf"search.degree must be <= {MAX_DEGREE}, got {MAX_DEGREE + 1}"),
         (MINIMAL + "[search]\ninit_low = 1.0\ninit_high = -1.0",
@@ -196,3 +199,20 @@ def test_saved_scenarios_write_arrays_on_one_line_and_any_text(tmp_path):
     assert "joint_limits = [[-3.0, 3.0], [-3.0, 3.0], [-3.0, 3.0]]\n" in text
     assert "center = [46.0, 4.0]\n" in text and "[\n" not in text
     assert jaxarm.load_scenario(path) == problem
+
+
+def test_a_pose_of_a_longer_arm_is_solved_near_its_posture(tmp_path):
+    posture = np.array([1.2, 0.4, 0.3, -0.2, -0.2])  # the goal, given as a pose and a near
+    absolute = np.cumsum(posture)
+    x, y = float(20 * np.cos(absolute).sum()), float(20 * np.sin(absolute).sum())
+    path = tmp_path / "five.toml"
+    path.write_text("[arm]\nlengths = [20.0, 20.0, 20.0, 20.0, 20.0]\n"
+                    "[start]\npose = { x = 60.0, y = -20.0, phi = -0.3 }\n"
+                    f"[goal]\npose = {{ x = {x!r}, y = {y!r}, phi = 1.5, "
+                    "near = [1.25, 0.35, 0.3, -0.15, -0.25] }\n")
+    problem = jaxarm.load_scenario(path)
+    for joints, (x, y, phi) in ((problem.start, (60.0, -20.0, -0.3)), (problem.goal, (x, y, 1.5))):
+        end = np.asarray(jaxarm.joint_positions(problem.arm.lengths, np.float32(joints)))[-1]
+        np.testing.assert_allclose(end, [x, y], atol=1e-4)
+        assert np.sum(joints) == pytest.approx(phi, abs=1e-6)
+    assert np.abs(np.subtract(problem.goal, posture)).max() < 0.1  # that one, of many

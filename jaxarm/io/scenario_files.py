@@ -13,8 +13,9 @@ Schema (units: cm and rad)::
     gravity = 9.81                     # optional, m/s^2 along -y (default 9.81; 0: horizontal)
     joint_limits = [[-3.2, 3.2], [-2.5, 2.5], [-2.5, 2.5]]   # optional, rad per joint
     [start]                            # joint angles, or a pose solved by inverse kinematics
-    joints = [-1.33, 2.03, -0.69]      #   (3-link arms only); if both are given they must agree
-    pose = { x = 50.0, y = -10.0, phi = 0.0, elbow = 1 }
+    joints = [-1.33, 2.03, -0.69]      #   (arms of 3 or more links, ``jaxarm.model.poses``;
+    pose = { x = 50.0, y = -10.0, phi = 0.0, elbow = 1 }   # ``near = [...]``: the solution
+                                       #   near that posture); both given: they must agree
     [goal]                             # same as [start]
     [search]                           # all optional
     degree = 6                         # polynomial degree, 6 to MAX_DEGREE (jaxarm.choices)
@@ -58,7 +59,8 @@ import tomli_w
 from jaxarm._validate import finite_scalar, finite_vector, renamed
 from jaxarm.io import occupancy_maps
 from jaxarm.model import world as world_lib
-from jaxarm.model.arm import Arm, inverse_kinematics
+from jaxarm.model.arm import Arm
+from jaxarm.model.poses import inverse_kinematics
 from jaxarm.model.problem import Problem
 from jaxarm.model.world import World
 
@@ -187,16 +189,15 @@ def _posture(data: dict, which: str, arm: Arm):
         return table["joints"]
     pose = table["pose"]
     if not isinstance(pose, dict) or not {"x", "y"} <= set(pose):
-        raise ScenarioError(f"{which}.pose must be {{x, y, phi, elbow}}, got {pose!r}")
-    _unknown(pose, {"x", "y", "phi", "elbow"}, f"in {which}.pose: ")
-    if arm.n_joints != 3:
-        raise ScenarioError(f"{which}.pose needs a 3-link arm (inverse kinematics), got "
-                            f"arm.lengths with {arm.n_joints} links; give {which}.joints")
+        raise ScenarioError(f"{which}.pose must be {{x, y, phi, elbow, near}}, got {pose!r}")
+    _unknown(pose, {"x", "y", "phi", "elbow", "near"}, f"in {which}.pose: ")
     try:
         joints = inverse_kinematics(arm, pose["x"], pose["y"], pose.get("phi", 0.0),
-                                    pose.get("elbow", 1))
+                                    pose.get("elbow", 1), pose.get("near"))
     except ValueError as error:
-        raise ScenarioError(f"{which}.{error}") from None
+        message = str(error)  # "pose.near must ...", "pose (x=...) is unreachable", ...
+        raise ScenarioError(f"{which}.{message}" if message.startswith("pose") else
+                            f"{which}.pose: {message}") from None
     if "joints" in table:
         _check_agreement(which, arm, table["joints"], pose)
     return joints
@@ -210,8 +211,9 @@ def _check_agreement(which: str, arm: Arm, joints, pose: dict) -> None:
     phi = float(absolute[-1])
     wrapped = (phi - float(pose.get("phi", 0.0)) + np.pi) % (2 * np.pi) - np.pi
     elbow = 1 if np.sin(given[1]) >= 0 else -1
+    elbow_counts = arm.n_joints == 3 and "near" not in pose  # it picks the closed form's
     if (max(abs(x - pose["x"]), abs(y - pose["y"]), abs(wrapped)) > POSE_TOLERANCE
-            or elbow != pose.get("elbow", 1)):
+            or elbow_counts and elbow != pose.get("elbow", 1)):
         raise ScenarioError(
             f"{which}.joints {given.tolist()} and {which}.pose {pose} disagree: the joints put "
             f"the end-effector at x = {x:.6g}, y = {y:.6g}, phi = {phi:.6g}, elbow {elbow:+d}; "

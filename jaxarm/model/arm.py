@@ -1,4 +1,4 @@
-"""Planar serial arms: link lengths, forward kinematics (paper eqs. 1-4), inverse kinematics.
+"""Planar serial arms: link lengths and forward kinematics (paper eqs. 1-4).
 
 The base sits at the origin. Joint angles are relative: link k points along the absolute
 angle ``phi_k = theta_1 + ... + theta_k``, and joint k's position is the previous one plus
@@ -178,58 +178,3 @@ def _real(field: str, values):
     if array is None or array.dtype.kind not in "biuf":
         raise ValueError(f"{field} must be real numbers, got {values!r}")
     return array
-
-
-def inverse_kinematics(arm: Arm, x: float, y: float, phi: float, elbow: int = 1) -> np.ndarray:
-    """Joint angles that put a 3-link arm's end-effector at (x, y) with orientation phi.
-
-    The wrist (joint 2) is placed at ``(x, y) - l3 (cos phi, sin phi)``; the first two links
-    reach it with the closed-form two-link solution whose elbow angle has the sign ``elbow``.
-
-    Args:
-      arm: a 3-link arm.
-      x: end-effector position along x (cm).
-      y: end-effector position along y (cm).
-      phi: end-effector orientation, the absolute angle of the last link (rad).
-      elbow: +1 or -1, the sign of joint 2.
-
-    Returns:
-      Joint angles (rad), shape (3,), each wrapped to (-pi, pi].
-
-    Raises:
-      ValueError: if the arm does not have 3 links, the pose is non-finite, or it is out of reach.
-    """
-    if arm.n_joints != 3:
-        raise ValueError(
-            f"inverse kinematics needs a 3-link arm, got arm.lengths with {arm.n_joints} links"
-        )
-    for name, value in (("x", x), ("y", y), ("phi", phi)):
-        if not math.isfinite(float(value)):
-            raise ValueError(f"pose.{name} must be finite, got {value!r}")
-    if elbow not in (1, -1):
-        raise ValueError(f"pose.elbow must be +1 or -1, got {elbow!r}")
-    l1, l2, l3 = arm.lengths
-    wrist_x = x - l3 * math.cos(phi)
-    wrist_y = y - l3 * math.sin(phi)
-    distance = math.hypot(wrist_x, wrist_y)  # no overflow, unlike squaring a huge x
-    cos_elbow = ((distance**2 - l1**2 - l2**2) / (2 * l1 * l2) if distance <= 2 * (l1 + l2)
-                 else math.inf)
-    if not -1.0 <= cos_elbow <= 1.0:
-        raise ValueError(
-            f"pose (x={x}, y={y}, phi={phi}) is unreachable: the wrist at "
-            f"({wrist_x:.4g}, {wrist_y:.4g}) is {distance:.4g} cm from the base, "
-            f"outside [{abs(l1 - l2):.4g}, {l1 + l2:.4g}]"
-        )
-    theta2 = elbow * math.acos(cos_elbow)
-    theta1 = math.atan2(wrist_y, wrist_x) - math.atan2(
-        l2 * math.sin(theta2), l1 + l2 * math.cos(theta2)
-    )
-    theta3 = phi - theta1 - theta2
-    return np.array([_wrap(theta1), theta2, _wrap(theta3)])
-
-
-def _wrap(angle: float) -> float:
-    """Angle wrapped to (-pi, pi]."""
-    wrapped = math.remainder(angle, 2 * math.pi)
-    return math.pi if wrapped == -math.pi else wrapped
-

@@ -30,7 +30,8 @@ import numpy as np
 from jaxarm._compile.jit import jit
 from jaxarm.checks.evaluate import fitness
 from jaxarm.model import path
-from jaxarm.model.arm import Arm, inverse_kinematics, joint_positions
+from jaxarm.model.arm import Arm, joint_positions
+from jaxarm.model.poses import inverse_kinematics
 from jaxarm.model.path_functions import joint_path
 from jaxarm.model.problem import Problem
 from jaxarm.paper.published import PublishedSet, a6_array
