@@ -134,20 +134,25 @@ def _mark_collision(ax, problem: Problem, x, r, trace) -> None:
     """Where the path collides (``plot_motion``): crosses at the instants ``r`` where exact
     distances put a link inside an obstacle or its margin, and, if the problem's check finds
     the path colliding, its witness. A path clear at every instant costs no check."""
-    distance, _ = clearance_along(problem, _one_path(problem, x), r)
+    distance = clearance_along(problem, _one_path(problem, x), r)[0]
     inside = distance.min(axis=1) < problem.margin
     if not inside.any():
         return
     ax.plot(trace[inside, 0], trace[inside, 1], "x", color="#d62728", ms=5, zorder=4,
             label="in collision")
     witness = deepest_contact(problem, _one_path(problem, x))
-    if int(witness.obstacle) < 0:
+    if not witness.found:
         return
     posture = _positions(problem, x, np.array([float(witness.r)]))[0]
     ax.plot(posture[:, 0], posture[:, 1], "-", color="#d62728", lw=2.6, zorder=5,
             label=f"deepest contact, r = {float(witness.r):.3g}")
-    ax.add_patch(_obstacle_patch(problem.world, int(witness.obstacle), facecolor="none",
-                                 edgecolor="#d62728", linewidth=2.2, zorder=5))
+    if int(witness.obstacle) >= 0:
+        ax.add_patch(_obstacle_patch(problem.world, int(witness.obstacle), facecolor="none",
+                                     edgecolor="#d62728", linewidth=2.2, zorder=5))
+    else:  # two links: both drawn thick
+        for link in (int(witness.link), int(witness.other_link)):
+            ax.plot(posture[link:link + 2, 0], posture[link:link + 2, 1], "-", color="#8b0000",
+                    lw=4.0, zorder=6)
 
 
 def _obstacle_patch(world, index: int, **style):
@@ -169,7 +174,7 @@ def plot_clearance(problem: Problem, x, n_points: int = 401, ax=None,
     n_points = positive_int("n_points", n_points, minimum=2)
     figure, ax = _axes(ax, (5.5, 3.5))
     r = np.linspace(0.0, 1.0, n_points)
-    distance, _ = clearance_along(problem, _one_path(problem, x), r)
+    distance = clearance_along(problem, _one_path(problem, x), r)[0]
     for link in range(problem.n_joints):
         ax.plot(r, distance[:, link], lw=1.2, label=f"link {link + 1}")
     ax.axhline(0.0, color="black", lw=0.8)
@@ -177,7 +182,7 @@ def plot_clearance(problem: Problem, x, n_points: int = 401, ax=None,
         ax.axhline(problem.margin, color="#d62728", ls="--", lw=1.0,
                    label=f"margin {problem.margin:g} cm")
     witness = deepest_contact(problem, _one_path(problem, x))
-    if int(witness.obstacle) >= 0:
+    if witness.found:
         ax.plot(float(witness.r), float(witness.distance), "x", color="#d62728", ms=9, mew=2,
                 label=f"witness: link {int(witness.link) + 1}", zorder=4)
     finite = distance[np.isfinite(distance)]

@@ -407,10 +407,11 @@ def _witness(problem: Problem, x) -> tuple | None:
     """``Result.witness`` of the path x (``evaluate.deepest_contact``), or None where there is
     no contact (a joint limit alone)."""
     found = deepest_contact(problem, x)
-    if int(found.obstacle) < 0:
+    if not found.found:
         return None
-    return (float(found.r), int(found.link), int(found.obstacle), float(found.distance),
-            problem.world.obstacle_name(int(found.obstacle)))
+    name = (problem.world.obstacle_name(int(found.obstacle)) if found.obstacle >= 0
+            else f"link {int(found.other_link) + 1}")
+    return float(found.r), int(found.link), int(found.obstacle), float(found.distance), name
 
 
 def _refined(problem, outcome: RestartOutcome, every: bool) -> RestartOutcome:

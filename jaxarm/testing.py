@@ -112,6 +112,29 @@ def dense_clearance(problem, x, n_points: int = 4001, cutoff: float | None = Non
     return nearest.reshape(segments.shape[:3]).min(axis=(1, 2))
 
 
+def self_clearance(problem, x, n_points: int = 4001) -> np.ndarray:
+    """Smallest distance between two links that are not neighbours over ``n_points`` times of
+    each motion (shapely, float64); -1e-9 where two cross (the depth not measured).
+
+    Args:
+      x: free parameters, shape (n_paths, n_free).
+
+    Returns:
+      Array of shape (n_paths,), cm; +inf for an arm of fewer than 3 links.
+    """
+    segments = link_segments(problem, x, n_points)  # (paths, points, links, 2, 2)
+    nearest = np.full(len(segments), np.inf)
+    n_links = segments.shape[2]
+    for i in range(n_links - 2):
+        first = shapely.linestrings(segments[:, :, i].reshape(-1, 2, 2))
+        for j in range(i + 2, n_links):
+            second = shapely.linestrings(segments[:, :, j].reshape(-1, 2, 2))
+            distance = np.where(shapely.intersects(first, second), -1e-9,
+                                shapely.distance(first, second))
+            nearest = np.minimum(nearest, distance.reshape(len(segments), -1).min(axis=1))
+    return nearest
+
+
 def shapely_obstacles(world):
     """Circles as (center, radius) for exact distances; boxes and polygons as Polygons, then
     segments as LineStrings."""

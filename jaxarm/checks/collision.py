@@ -25,7 +25,7 @@ import functools
 import jax
 import jax.numpy as jnp
 
-from jaxarm.model import nearby, path
+from jaxarm.model import nearby, path, self_collision
 from jaxarm.model import world as world_lib
 from jaxarm.model.arm import link_endpoints
 
@@ -52,15 +52,20 @@ def posture_margin_depth(lengths, world, theta: list, margin=0.0, *, exact: bool
         for polygons (exact where <= 0: enough for margin 0); see ``world.polygon_slots``.
 
     Returns:
-      Array of shape (...,), >= 0, zero iff every link keeps the margin from every obstacle.
+      Array of shape (...,), >= 0, zero iff every link keeps the margin from every obstacle
+      (and, for an arm that checks self-collision, from every link but its neighbours: how
+      deep two links cross, or come inside the margin, counts as an obstacle's depth).
 
     With exact distances and more than ``UNROLLED_LINK_EDGES`` link-edge pairs
     (``link_edge_pairs``), the links are taken one at a time, in a ``lax.scan``. A world
     with near tables (``jaxarm.model.nearby``) tests each link against its listed slots
     alone: the others are farther than the tables' reach, which is at least the margin.
     """
-    links = link_endpoints(lengths, theta)
     total = jnp.zeros_like(theta[0])
+    for frame in self_collision.frames(lengths, world, theta):  # pairs of links
+        for link in link_endpoints(frame.lengths, frame.joints)[self_collision.TESTED]:
+            total = _add_link_margin_depth(total, link, frame.wall, margin, exact=exact)
+    links = link_endpoints(lengths, theta)
     if world.near is not None:
         for index, link in enumerate(links):
             total = total + nearby.over_blocks(
@@ -102,10 +107,15 @@ def posture_clearance_bound(lengths, world, theta: list, *, exact: bool) -> list
         the certified check's samples and windows")
 
     Returns:
-      A list of n_joints arrays of shape (...,); negative values are minus a penetration
-      depth; +inf for a world without obstacles.
+      A list of n_joints arrays of shape (...,) (then, for an arm that checks
+      self-collision, one per pair of links, ``self_collision.pairs``: their distance);
+      negative values are minus a penetration depth; +inf for a world without obstacles.
     """
-    return link_clearance_bounds(world, link_endpoints(lengths, theta), exact=exact)
+    return link_clearance_bounds(world, link_endpoints(lengths, theta), exact=exact) + [
+        bound for frame in self_collision.frames(lengths, world, theta)
+        for bound in link_clearance_bounds(
+            frame.wall, link_endpoints(frame.lengths, frame.joints)[self_collision.TESTED],
+            exact=exact)]
 
 
 def link_clearance_bounds(world, links: list, *, exact: bool) -> list:

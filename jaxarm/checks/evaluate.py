@@ -206,7 +206,8 @@ def _evaluate_and_certify(spec: ProblemSpec, arrays: ProblemArrays, rows):
         free = free & (limits.excess == 0)
     none = jnp.full(rows.shape[:1], -1, jnp.int32)  # link and obstacle: ``certify`` finds them
     return evaluation, Certificate(free, colliding, check.clearance,
-                                   check.exhausted & ~colliding, check.witness_r, none, none)
+                                   check.exhausted & ~colliding, check.witness_r, none, none,
+                                   none)
 
 
 def evaluate_paths(problem: Problem, x) -> Evaluation:
@@ -297,7 +298,9 @@ class Certificate(NamedTuple):
     #   the margin); NaN otherwise, and on a path that leaves only a joint limit
     witness_link: jax.Array  # int32: the link (0-based) nearest an obstacle at witness_r; -1
     witness_obstacle: jax.Array  # int32: that obstacle's index in ``World``'s order (its
-    #   circles, then its boxes, then its polygons); -1
+    #   circles, then its boxes, polygons and segments); -1
+    witness_other_link: jax.Array  # int32: for an arm that checks self-collision, the other
+    #   link where the contact is between two links (``witness_obstacle`` then -1); -1
 
 
 def certify(problem: Problem, x) -> Certificate:
@@ -338,7 +341,8 @@ def _certified_with_witness(problem: Problem, x) -> tuple[Certificate, witness_l
     certificate = on_padded_rows(functools.partial(_evaluate_and_certify, spec, problem.arrays),
                                  x)[1]
     found = witness_lib.contacts(problem, x, certificate.witness_r)
-    return certificate._replace(witness_link=found.link, witness_obstacle=found.obstacle), found
+    return certificate._replace(witness_link=found.link, witness_obstacle=found.obstacle,
+                                witness_other_link=found.other_link), found
 
 
 def collision_witness(problem: Problem, x) -> witness_lib.Witness:
@@ -377,10 +381,11 @@ def deepest_contact(problem: Problem, x) -> witness_lib.Witness:
     summary or a figure shows of a colliding path, without compiling a check when the path's
     contact is wide enough to see. NaN / -1 where neither finds one."""
     r = np.linspace(0.0, 1.0, 4 * (problem.n_samples - 1) + 1)
-    distance, obstacle = witness_lib.clearance_along(problem, x, r)
+    distance, obstacle, other = witness_lib.clearance_along(problem, x, r)
     at, link = np.unravel_index(np.argmin(distance), distance.shape)
     if distance[at, link] < problem.margin:
         return witness_lib.Witness(r=float(r[at]), link=int(link),
                                    obstacle=int(obstacle[at, link]),
-                                   distance=float(distance[at, link]))
+                                   distance=float(distance[at, link]),
+                                   other_link=int(other[at, link]))
     return collision_witness(problem, x)

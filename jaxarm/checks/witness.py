@@ -3,7 +3,8 @@
 The certified check finds its instant itself (``certified.CertifiedCheck.witness_r``); the
 sampled check's is its deepest sample (``deepest_sample_rows``). The link and the obstacle are
 those nearest each other at that instant (``contacts``): every link against every obstacle
-slot of the whole world, exact distances, so the pair named is one a user can check by hand.
+slot of the whole world (and, for an arm that checks self-collision, every link that is not
+its neighbour), exact distances, so the pair named is one a user can check by hand.
 Obstacles are numbered in ``World``'s order: its circles, then its boxes, then its polygons.
 """
 
@@ -19,7 +20,7 @@ import numpy as np
 from jaxarm._compile.jit import jit
 from jaxarm._compile.padding import on_padded_rows
 from jaxarm.checks import collision as collision_lib
-from jaxarm.model import path
+from jaxarm.model import path, self_collision
 from jaxarm.model import world as world_lib
 from jaxarm.model.arm import link_endpoints
 from jaxarm.model.path_functions import joint_path
@@ -37,6 +38,13 @@ class Witness(NamedTuple):
     link: jax.Array  # int32: the link (0-based) nearest an obstacle there
     obstacle: jax.Array  # int32: that obstacle's index in ``World``'s order
     distance: jax.Array  # cm: their distance there (< margin; negative: penetration depth)
+    other_link: jax.Array  # int32: for an arm that checks self-collision, the other link
+    #   where the contact is between two links (``obstacle`` is then -1); -1 otherwise
+
+    @property
+    def found(self):
+        """Bool, shape (...,): a contact, with an obstacle or between two links."""
+        return (self.obstacle >= 0) | (self.other_link >= 0)
 
 
 def link_distances(lengths, world, theta):
@@ -48,27 +56,52 @@ def link_distances(lengths, world, theta):
       theta: postures, shape (P, n_joints).
 
     Returns:
-      ``(distance, slot)``, each of shape (P, n_joints): cm (+inf and slot -1 in a world
-      without obstacles), int32.
+      ``(distance, slot, other)``, each of shape (P, n_joints): cm (+inf and slot -1 in a
+      world without obstacles), int32, and for an arm that checks self-collision the link
+      nearer than any obstacle (its slot then -1), else -1.
     """
     world = world._replace(near=None)
     valid = jnp.concatenate([world.circle_valid, world.polygon_valid])
-    if valid.shape[0] == 0:
-        shape = theta.shape
-        return jnp.full(shape, jnp.inf, theta.dtype), jnp.full(shape, -1, jnp.int32)
+    n_joints = theta.shape[-1]
     circles = jnp.asarray(world.circles, theta.dtype)
 
-    def one(angles):  # the obstacles as an array axis: compiled once whatever their number
+    def obstacles(links):  # the obstacles as an array axis: compiled once whatever their number
+        if valid.shape[0] == 0:
+            return jnp.full((n_joints, 1), jnp.inf, theta.dtype)
         separation = jnp.stack([jnp.concatenate([
             world_lib.point_segment_distance(circles[:, 0], circles[:, 1], *link)
             - circles[:, 2], world_lib.polygon_separation_xy(*link, world, vertex_axis=True)])
-            for link in link_endpoints(lengths, list(angles))])
-        separation = jnp.where(valid[None], separation, jnp.inf)
+            for link in links])
+        return jnp.where(valid[None], separation, jnp.inf)
+
+    def one(angles):
+        angles = list(angles)
+        separation = obstacles(link_endpoints(lengths, angles))
         nearest = separation.min(axis=1)  # inf: only padding slots
-        return nearest, jnp.where(jnp.isinf(nearest), -1,
-                                  jnp.argmin(separation, axis=1)).astype(jnp.int32)
+        slot = jnp.where(jnp.isinf(nearest), -1, jnp.argmin(separation, axis=1))
+        between = _link_separations(lengths, world, angles)  # (n_joints, n_joints)
+        closer = between.min(axis=1) < nearest
+        return (jnp.minimum(nearest, between.min(axis=1)),
+                jnp.where(closer, -1, slot).astype(jnp.int32),
+                jnp.where(closer, jnp.argmin(between, axis=1), -1).astype(jnp.int32))
 
     return jax.lax.map(one, theta, batch_size=POSTURES_AT_ONCE)
+
+
+def _link_separations(lengths, world, angles: list):
+    """Exact separations between every two links that are not neighbours, for an arm that
+    checks self-collision (``jaxarm.model.self_collision``), shape (n_joints, n_joints),
+    symmetric, +inf elsewhere (and everywhere for one that does not)."""
+    n_joints = len(angles)
+    between = jnp.full((n_joints, n_joints), jnp.inf, angles[0].dtype)
+    for frame in self_collision.frames(lengths, world, angles):
+        links = link_endpoints(frame.lengths, frame.joints)[self_collision.TESTED]
+        for offset, link in enumerate(links):
+            other = frame.first + 2 + offset
+            distance = world_lib.polygon_separation_xy(*link, frame.wall)[0]
+            between = between.at[frame.first, other].set(distance)
+            between = between.at[other, frame.first].set(distance)
+    return between
 
 
 _link_distances = jit(link_distances)
@@ -76,18 +109,20 @@ _link_distances = jit(link_distances)
 
 def clearance_along(problem: Problem, x, r):
     """Every link's exact distance to its nearest obstacle along one path (cm; negative: inside
-    one) and which obstacle that is (index in ``World``'s order).
+    one) and which obstacle that is (index in ``World``'s order), or, for an arm that checks
+    self-collision, which other link where one is nearer.
 
     Args:
       x: free parameters, shape (n_free,).
       r: instants in [0, 1], shape (n_r,).
 
     Returns:
-      ``(distance, obstacle)``, NumPy arrays of shape (n_r, n_joints).
+      ``(distance, obstacle, other_link)``, NumPy arrays of shape (n_r, n_joints) (-1:
+      none).
     """
     theta = joint_path(problem, x, r)
-    distance, slot = _link_distances(problem.arrays.lengths, problem.arrays.world, theta)
-    return np.asarray(distance), obstacle_index(problem, np.asarray(slot))
+    distance, slot, other = _link_distances(problem.arrays.lengths, problem.arrays.world, theta)
+    return np.asarray(distance), obstacle_index(problem, np.asarray(slot)), np.asarray(other)
 
 
 @functools.partial(jit, static_argnums=0, storable=True)
@@ -97,13 +132,13 @@ def _contact_rows(degree: int, arrays: ProblemArrays, rows_and_r):
     basis = path.basis_values(degree, jnp.nan_to_num(r)[:, None], 0)[:, 0]  # (B, degree - 4)
     theta = jnp.stack(path.joint_angle_list(arrays.start, arrays.goal, rows, basis,
                                             per_path=True), axis=-1)
-    distance, slot = link_distances(arrays.lengths, arrays.world, theta)
+    distance, slot, other = link_distances(arrays.lengths, arrays.world, theta)
     link = jnp.argmin(distance, axis=1).astype(jnp.int32)
-    nearest = jnp.take_along_axis(distance, link[:, None], axis=1)[:, 0]
-    slot = jnp.take_along_axis(slot, link[:, None], axis=1)[:, 0]
-    missing = jnp.isnan(r) | (slot < 0)
+    nearest, slot, other = (jnp.take_along_axis(a, link[:, None], axis=1)[:, 0]
+                            for a in (distance, slot, other))
+    missing = jnp.isnan(r) | ((slot < 0) & (other < 0))
     return (jnp.where(missing, -1, link), jnp.where(missing, -1, slot),
-            jnp.where(missing, jnp.nan, nearest))
+            jnp.where(missing, jnp.nan, nearest), jnp.where(missing, -1, other))
 
 
 def contacts(problem: Problem, x, r) -> Witness:
@@ -114,19 +149,20 @@ def contacts(problem: Problem, x, r) -> Witness:
     kernel = functools.partial(_contact_rows, problem.degree, problem.arrays)
     if isinstance(x, jax.core.Tracer) or isinstance(r, jax.core.Tracer):
         r = jnp.broadcast_to(jnp.asarray(r, x.dtype), x.shape[:-1])
-        link, slot, distance = on_padded_rows(kernel, jnp.concatenate([x, r[..., None]], -1))
-        return Witness(r, link, obstacle_index(problem, slot, jnp), distance)
+        link, slot, distance, other = on_padded_rows(kernel,
+                                                     jnp.concatenate([x, r[..., None]], -1))
+        return Witness(r, link, obstacle_index(problem, slot, jnp), distance, other)
     r = np.broadcast_to(np.asarray(r, x.dtype), x.shape[:-1]).reshape(-1)
     rows = x.reshape((r.shape[0], x.shape[-1]))
-    link, slot = np.full(r.shape, -1, np.int32), np.full(r.shape, -1, np.int32)
+    link, slot, other = (np.full(r.shape, -1, np.int32) for _ in range(3))
     distance = np.full(r.shape, np.nan, x.dtype)
     hit = np.flatnonzero(~np.isnan(r))
     if hit.size:
         found = on_padded_rows(kernel, np.concatenate([rows[hit], r[hit, None]], axis=1))
-        link[hit], slot[hit], distance[hit] = (np.asarray(a) for a in found)
+        link[hit], slot[hit], distance[hit], other[hit] = (np.asarray(a) for a in found)
     shaped = lambda a: jax.device_put(a.reshape(x.shape[:-1]))  # noqa: E731
     return Witness(shaped(r), shaped(link), shaped(obstacle_index(problem, slot, np)),
-                   shaped(distance))
+                   shaped(distance), shaped(other))
 
 
 def obstacle_index(problem: Problem, slot, xp=np):

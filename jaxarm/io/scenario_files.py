@@ -12,6 +12,7 @@ Schema (units: cm and rad)::
     masses = [3.0, 3.0, 2.0]           # optional, kg per link (uniform rods): for torques
     gravity = 9.81                     # optional, m/s^2 along -y (default 9.81; 0: horizontal)
     joint_limits = [[-3.2, 3.2], [-2.5, 2.5], [-2.5, 2.5]]   # optional, rad per joint
+    self_collision = true              # optional: links that are not neighbours keep apart
     [start]                            # joint angles, or a pose solved by inverse kinematics
     joints = [-1.33, 2.03, -0.69]      #   (arms of 3 or more links, ``jaxarm.model.poses``;
     pose = { x = 50.0, y = -10.0, phi = 0.0, elbow = 1 }   # ``near = [...]``: the solution
@@ -278,11 +279,13 @@ def _problem(data: dict, default_name: str, folder: pathlib.Path = pathlib.Path(
         raise ScenarioError(f"units must be {UNITS!r} (lengths in cm, angles in rad), "
                             f"got {data['units']!r}")
     arm_table = _table(data, "arm")
-    _unknown(arm_table, {"lengths", "masses", "gravity", "joint_limits"}, "in [arm]: ")
+    _unknown(arm_table, {"lengths", "masses", "gravity", "joint_limits", "self_collision"},
+             "in [arm]: ")
     if "lengths" not in arm_table:
         raise ScenarioError("[arm] needs 'lengths'")
     arm = Arm(lengths=arm_table["lengths"], masses=arm_table.get("masses"),
-              gravity=arm_table.get("gravity", Arm.gravity))
+              gravity=arm_table.get("gravity", Arm.gravity),
+              self_collision=arm_table.get("self_collision", False))
     search = _table(data, "search", required=False)
     _unknown(search, set(_SEARCH_FIELDS), "in [search]: ")
     fields = {field: search[key] for key, field in _SEARCH_FIELDS.items() if key in search}
@@ -341,6 +344,8 @@ def _arm_table(problem: Problem) -> dict:
         table["masses"] = list(arm.masses)
     if arm.gravity != Arm.gravity:
         table["gravity"] = arm.gravity
+    if arm.self_collision:
+        table["self_collision"] = True
     if problem.joint_limits is not None:
         table["joint_limits"] = [list(pair) for pair in problem.joint_limits]
     return table

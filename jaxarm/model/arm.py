@@ -28,6 +28,9 @@ class Arm:
         (kinematics only; ``jaxarm.model.dynamics`` needs them). Links are uniform rods.
       gravity: gravitational acceleration along -y (m/s^2), finite and >= 0; 0 for an arm
         moving in a horizontal plane.
+      self_collision: whether links that are not neighbours must keep apart (by the
+        problem's margin), as a real planar arm's links, which share one plane, must. Off by
+        default: the paper's scenes and numbers assume it off.
 
     Examples:
       >>> Arm(lengths=(30.0, 30.0, 20.0)).n_joints
@@ -37,6 +40,7 @@ class Arm:
     lengths: tuple[float, ...]
     masses: tuple[float, ...] | None = None
     gravity: float = 9.81
+    self_collision: bool = False
 
     def __post_init__(self):
         lengths = finite_vector("arm.lengths", self.lengths)
@@ -62,6 +66,10 @@ class Arm:
             raise ValueError(f"arm.gravity must be >= 0 (m/s^2, acting along -y), "
                              f"got {gravity!r}")
         object.__setattr__(self, "gravity", gravity)
+        if not isinstance(self.self_collision, (bool, np.bool_)):
+            raise ValueError(f"arm.self_collision must be true or false, got "
+                             f"{self.self_collision!r}")
+        object.__setattr__(self, "self_collision", bool(self.self_collision))
 
     @property
     def n_joints(self) -> int:

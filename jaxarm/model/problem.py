@@ -27,7 +27,7 @@ from jaxarm._validate import (
     representable,
 )
 from jaxarm.choices import COLLISION_MODES, MAX_SAMPLES, one_of
-from jaxarm.model import nearby, path, posture
+from jaxarm.model import nearby, path, posture, self_collision
 from jaxarm.model.arm import Arm
 from jaxarm.model.world import World, WorldArrays
 
@@ -233,6 +233,24 @@ class Problem:
             theta = np.asarray(getattr(self, which), dtype=dtype)
             for world, names in parts:
                 self._check_posture(which, theta, lengths, world, names)
+            if self.arm.self_collision:
+                self._check_self_collision(which, theta, lengths)
+
+    def _check_self_collision(self, which: str, theta, lengths) -> None:
+        """Links that are not neighbours neither cross nor come closer than the margin (in
+        each frame of ``self_collision``: the later links against the earlier one)."""
+        for first, wall in enumerate(self_collision.link_walls(lengths)):
+            chain = np.concatenate([[0.0], theta[first + 1:]]).astype(theta.dtype)
+            separation = np.asarray(_posture_separation(lengths[first:], wall, chain))[2:, 0]
+            closest = int(np.argmin(separation))
+            if separation[closest] < self.margin:
+                pair = f"links {first + 1} and {first + closest + 3}"
+                raise ValueError(
+                    f"{which} posture {list(getattr(self, which))} collides with itself: "
+                    + (f"{pair} cross (by {-separation[closest]:.4g} cm)"
+                       if separation[closest] < 0 else
+                       f"{pair} are {separation[closest]:.4g} cm apart, closer than margin "
+                       f"{self.margin:g} cm"))
 
     def _check_posture(self, which: str, theta, lengths, world, names) -> None:
         depth = np.asarray(_posture_depth(lengths, world, theta))
@@ -298,6 +316,8 @@ class Problem:
         """The world packed at the problem's capacities, with near tables for this arm and
         margin when it is large (``jaxarm.model.nearby``)."""
         world = self.world.pack(self.capacities)
+        if self.arm.self_collision:
+            world = world._replace(link_walls=self_collision.link_walls(self.arm.lengths))
         if not nearby.uses_broad_phase(self.capacities):
             return world
         lengths = np.asarray(self.arm.lengths)

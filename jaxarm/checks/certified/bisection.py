@@ -22,7 +22,7 @@ from jaxarm.checks import collision as collision_lib
 from jaxarm.checks.certified import bounds
 from jaxarm.checks.certified.bits import lowest_set_bit
 from jaxarm.checks.certified.samples import Motion
-from jaxarm.model import path
+from jaxarm.model import path, self_collision
 from jaxarm.model import world as world_lib
 
 MAX_LEVELS = 22  # halvings of a sample window; offsets stay exact integers in float32
@@ -100,29 +100,25 @@ def _test_pieces(motion: Motion, pieces: _Piece, tables, step, margin, busy):
         speed = [bounds.taylor_derivative_bound([order[j] for order in about_centre],
                                                 widened_radius)
                  for j in range(n_joints)]
-        return (bounds.link_swings(lengths, speed, widened_radius),
-                bounds.link_motions(lengths, about_centre, widened_radius))
+        swings = bounds.link_swings(lengths, speed, widened_radius)
+        motions = bounds.link_motions(lengths, about_centre, widened_radius)
+        for frame in self_collision.frames(lengths, world, about_centre):  # pairs, after
+            swings += bounds.link_swings(frame.lengths, self_collision.in_frame(
+                frame.first, speed), widened_radius)[self_collision.TESTED]
+            motions += bounds.link_motions(frame.lengths, frame.joints,
+                                           widened_radius)[self_collision.TESTED]
+        return swings, motions
 
-    def stacked(swing, motions):  # the links on a leading axis: (n_joints, n) each
+    def stacked(swing, motions):  # the links on a leading axis: (n_rows, n) each
         return jnp.stack(swing), jax.tree.map(lambda *links: jnp.stack(links), *motions)
 
-    def tight_bounds(swing, motion):  # every link at once: (n_joints, n) each
-        second = 0.5 * widened_radius[None] * widened_radius[None] * motion.acceleration
-
-        def gaps(world):  # the nearest obstacle at the centre and the hull's gap
-            parts = world_lib.separation_parts(*motion.near, *motion.far, world)
-            return (collision_lib.smallest_separation(parts, swing),
-                    bounds.motion_gap(world, motion, widened_radius[None], second, parts))
-        if world.near is None:
-            clearance, hull = gaps(world)
-        else:  # each link's listed obstacles, the reach for the others
-            links = jnp.arange(n_joints)[:, None]
-            clearance, hull = collision_lib.near_minimum(
-                world, links, (*motion.near, *motion.far), gaps)
-            reach = jnp.asarray(world.near.reach, dtype)
-            hull = jnp.minimum(hull, reach - widened_radius[None] * motion.top_speed)
-        first = swing - (clearance - margin)
-        return first, second - (hull - margin), clearance
+    def tight_bounds(swing, motion):  # the links against the world, each pair's its wall
+        walls = [(world, 0, n_joints)]  # (world, first row, last row + 1)
+        for first, wall in enumerate(world.link_walls or ()):
+            walls.append((wall, walls[-1][2], walls[-1][2] + n_joints - first - 2))
+        parts = [_bounds_against(wall, swing[a:b], jax.tree.map(lambda v: v[a:b], motion),
+                                 widened_radius, margin) for wall, a, b in walls]
+        return tuple(jnp.concatenate(values) for values in zip(*parts))
 
     # Three branches, taken unless no piece is to be tested (``busy`` False: zeros): the
     # pieces' geometry link by link, the links stacked on an array axis, and the bounds on
@@ -133,11 +129,12 @@ def _test_pieces(motion: Motion, pieces: _Piece, tables, step, margin, busy):
     # branch's results are computed once and kept whole (``benchmarks/RESULTS.md``,
     # *Decisions and negative results*, "The piece test in two branches" and "Geometry
     # stacked over the links").
+    n_rows = n_joints + (0 if world.link_walls is None else len(self_collision.pairs(n_joints)))
     zero = jnp.zeros(x.shape[:1], dtype)
-    links = jnp.zeros((n_joints,) + x.shape[:1], dtype)
+    links = jnp.zeros((n_rows,) + x.shape[:1], dtype)
     swing, motions = jax.lax.cond(
         busy, geometry,
-        lambda: ([zero] * n_joints, [bounds.LinkMotion.zeros(zero)] * n_joints))
+        lambda: ([zero] * n_rows, [bounds.LinkMotion.zeros(zero)] * n_rows))
     swing, motion = jax.lax.cond(busy, stacked,
                                  lambda *_: (links, bounds.LinkMotion.zeros(links)),
                                  swing, motions)
@@ -146,6 +143,27 @@ def _test_pieces(motion: Motion, pieces: _Piece, tables, step, margin, busy):
     return _PieceTest(shortfall=jnp.minimum(first, second).max(axis=0),
                       first_order=first.max(axis=0), second_order=second.max(axis=0),
                       nearest=clearance.min(axis=0), radius=radius)
+
+
+def _bounds_against(world, swing, motion: bounds.LinkMotion, radius, margin):
+    """The first-order and second-order shortfalls and the centre's clearance of rows of
+    links (a leading axis: (rows, n) each) against ``world`` over pieces of ``radius``
+    (``_test_pieces``)."""
+    second = 0.5 * radius[None] * radius[None] * motion.acceleration
+
+    def gaps(world):  # the nearest obstacle at the centre and the hull's gap
+        parts = world_lib.separation_parts(*motion.near, *motion.far, world)
+        return (collision_lib.smallest_separation(parts, swing),
+                bounds.motion_gap(world, motion, radius[None], second, parts))
+    if world.near is None:
+        clearance, hull = gaps(world)
+    else:  # each link's listed obstacles, the reach for the others
+        links = jnp.arange(swing.shape[0])[:, None]
+        clearance, hull = collision_lib.near_minimum(
+            world, links, (*motion.near, *motion.far), gaps)
+        reach = jnp.asarray(world.near.reach, swing.dtype)
+        hull = jnp.minimum(hull, reach - radius[None] * motion.top_speed)
+    return swing - (clearance - margin), second - (hull - margin), clearance
 
 
 class Verdict(NamedTuple):

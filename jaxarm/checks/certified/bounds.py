@@ -8,6 +8,8 @@ from the joints' Taylor coefficients about the centre c: what the certified chec
   in a world of circles alone, a third order (``bent_corners``) too.
 
 A shortfall is how far a piece is from proved: <= 0 proves the link keeps the margin there.
+For an arm that checks self-collision, the lists go on with one shortfall per pair of links
+(``jaxarm.model.self_collision``): the later link against the earlier one, in its frame.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import numpy as np
 
 from jaxarm.checks import collision as collision_lib
 from jaxarm.checks.certified.hull import Patch, hull_separation
+from jaxarm.model import self_collision
 from jaxarm.model import world as world_lib
 from jaxarm.model.arm import sincos
 
@@ -178,7 +181,17 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
         shortfalls.append(jnp.minimum(
             swings[k] - (clearance - margin),
             0.5 * radius * radius * motion.acceleration - (swept - margin)))
-    return shortfalls
+    return shortfalls + _pair_shortfalls(drift_shortfalls, lengths, world, about_centre, radius,
+                                         margin)
+
+
+def _pair_shortfalls(shortfalls_of, lengths, world, about_centre: list, radius, margin) -> list:
+    """``shortfalls_of``'s bound for every pair of links of an arm that checks
+    self-collision (``self_collision.frames``: each later link against the earlier one as a
+    wall, moving as it moves relative to it); none otherwise."""
+    return [shortfall for frame in self_collision.frames(lengths, world, about_centre)
+            for shortfall in shortfalls_of(frame.lengths, frame.wall, frame.joints, radius,
+                                           margin)[self_collision.TESTED]]
 
 
 def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> list:
@@ -219,7 +232,8 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
     Returns:
       A list of n_joints arrays of shape (...,).
     """
-    return motion_shortfalls(world, link_motions(lengths, about_centre, radius), radius, margin)
+    return (motion_shortfalls(world, link_motions(lengths, about_centre, radius), radius, margin)
+            + _pair_shortfalls(sweep_shortfalls, lengths, world, about_centre, radius, margin))
 
 
 def motion_shortfalls(world, motions: list, radius, margin=0.0, separations=None) -> list:

@@ -1,0 +1,103 @@
+"""Self-collision (``jaxarm.model.self_collision``): links that are not neighbours must not meet,
+in both checks, against an independent oracle (shapely distances between the links)."""
+
+import numpy as np
+import pytest
+
+import jaxarm
+from jaxarm.testing import dense_clearance, oracle_path_collides, self_clearance
+
+
+def curling_chain(n_links: int) -> jaxarm.Problem:
+    """An arm of 20 cm links that curls, beside a wall: paths of its range cross its own
+    links often."""
+    bends = [1.0] * (n_links - 2)
+    return jaxarm.Problem(arm=jaxarm.Arm((20.0,) * n_links, self_collision=True),
+                          start=[0.3, *bends, 0.5], goal=[1.2, *np.negative(bends), -0.5],
+                          world=jaxarm.World(segments=[((40.0, -60.0), (90.0, -30.0))]),
+                          init_low=-150.0, init_high=150.0)
+
+
+@pytest.fixture(scope="module")
+def chain():
+    return curling_chain(6)
+
+
+def test_a_posture_whose_links_cross_is_refused(tmp_path):
+    arm = jaxarm.Arm((30.0, 30.0, 20.0), self_collision=True)
+    with pytest.raises(ValueError, match=r"goal posture \[0.0, 2.8, 2.8\] collides with itself: "
+                                         r"links 1 and 3 cross \(by 2.576 cm\)"):
+        jaxarm.Problem(arm=arm, start=[0.0, 0.5, 0.5], goal=[0.0, 2.8, 2.8])
+    with pytest.raises(ValueError, match=r"start posture .* links 1 and 3 are 5.\d+ cm apart, "
+                                         r"closer than margin 6 cm"):
+        jaxarm.Problem(arm=arm, start=[0.0, 2.2, 2.2], goal=[0.0, 0.5, 0.5], margin=6.0)
+    jaxarm.Problem(arm=jaxarm.Arm(arm.lengths), start=[0.0, 0.5, 0.5], goal=[0.0, 2.8, 2.8])
+    path = tmp_path / "crossed.toml"
+    path.write_text("[arm]\nlengths = [30.0, 30.0, 20.0]\nself_collision = true\n"
+                    "[start]\njoints = [0.0, 0.5, 0.5]\n[goal]\njoints = [0.0, 2.8, 2.8]\n")
+    with pytest.raises(jaxarm.ScenarioError, match="crossed.toml: goal posture .* collides with "
+                                                  "itself"):
+        jaxarm.load_scenario(path)
+    path.write_text(path.read_text().replace("true", "'yes'"))
+    with pytest.raises(jaxarm.ScenarioError, match="arm.self_collision must be true or false"):
+        jaxarm.load_scenario(path)
+
+
+@pytest.mark.parametrize("n_links, margin", [(4, 0.0), pytest.param(6, 0.0, marks=pytest.mark.slow),
+                                             pytest.param(6, 1.0, marks=pytest.mark.slow)])
+def test_no_path_called_free_brings_two_links_closer_than_the_margin(rng, n_links, margin):
+    """Random paths of a curling chain: the certified check frees none whose links come
+    within the margin of each other (or of the wall) at any of 20,001 instants, and finds
+    colliding every one whose links cross at the oracle's 2,001."""
+    problem = curling_chain(n_links).replace(margin=margin)
+    x = rng.uniform(-150, 150, (64, problem.n_free)).astype(np.float32)
+    certificate = jaxarm.certify(problem, x)
+    free, colliding = np.asarray(certificate.free), np.asarray(certificate.colliding)
+    crossing = self_clearance(problem, x, 2001) < 0
+    assert crossing.sum() >= 5 and free.sum() > 10, (crossing.sum(), free.sum())
+    assert np.all(colliding[crossing])
+    proved = x[free][:16]  # the dense oracle's 20,001 instants on a few of them
+    closest = np.minimum(self_clearance(problem, proved, 20001),
+                         dense_clearance(problem, proved, 20001))
+    assert np.all(closest >= margin - 1e-4), closest.min()
+
+
+def test_the_sampled_check_agrees_with_the_oracle_at_its_samples(chain, rng):
+    problem = chain.replace(collision="sampled")
+    x = rng.uniform(-150, 150, (200, problem.n_free)).astype(np.float32)
+    ours = np.asarray(jaxarm.violation(problem, x))
+    oracle = (self_clearance(problem, x, problem.n_samples) < 0) | oracle_path_collides(
+        problem, x, problem.n_samples)
+    decided = (ours == 0) | (ours > 1e-4)  # paths that only graze are left out
+    assert decided.mean() > 0.95 and oracle.sum() > 20
+    np.testing.assert_array_equal((ours > 0)[decided], oracle[decided])
+
+
+def test_a_witness_names_the_two_links_and_the_violation_their_depth():
+    problem = jaxarm.Problem(arm=jaxarm.Arm((30.0, 30.0, 20.0), self_collision=True),
+                             start=[0.0, 0.5, 0.5], goal=[0.0, 2.3, 1.0])
+    through = np.array([0.0, 300.0, 300.0], np.float32)  # the tip folds back over link 1
+    certificate = jaxarm.certify(problem, through)
+    assert bool(certificate.colliding) and int(certificate.witness_obstacle) == -1
+    assert {int(certificate.witness_link), int(certificate.witness_other_link)} == {0, 2}
+    sampled = problem.replace(collision="sampled")
+    assert float(jaxarm.violation(sampled, through)) > 1.0  # cm: how deep they cross
+    off = jaxarm.Problem(arm=jaxarm.Arm((30.0, 30.0, 20.0)), start=problem.start,
+                         goal=problem.goal)
+    assert bool(jaxarm.certify(off, through).free)  # without it, nothing stops them
+    result = jaxarm.solve(problem.replace(init_low=-1.0, init_high=1.0), "A", n_restarts=4,
+                          n_iters=2)
+    assert result.feasible
+    crossed = jaxarm.solve(sampled.replace(init_low=299.0, init_high=301.0), "A", n_restarts=1,
+                           n_iters=1)
+    if crossed.witness is not None:  # the best of that swarm still crosses: named by link
+        assert crossed.witness[2] == -1 and crossed.witness[4].startswith("link ")
+
+
+def test_the_five_link_detour_is_solved_with_self_collision_on():
+    detour = jaxarm.load_scenario("five-link-detour")
+    problem = detour.replace(arm=jaxarm.Arm(detour.arm.lengths, self_collision=True))
+    result = jaxarm.solve(problem, n_restarts=32, max_stages=3, progress=False)
+    assert result.certified
+    x = np.asarray(result.best_x)[None]
+    assert self_clearance(problem, x, 20001)[0] > 0 and dense_clearance(problem, x, 20001)[0] > 0
