@@ -19,6 +19,10 @@ parameterised over r in [0, 1] (OMPL's waypoints by a clamped cubic spline in ar
 Requires ``pip install -e '.[bench]'``.
 
     .venv/bin/python benchmarks/peers.py [--seeds 30] [--scenarios paper-case-1,...]
+
+With ``--kinematic-chain 5,10,20``: OMPL's kinematic-chain benchmark instead
+(``benchmarks/kinematic_chain.py``), OMPL's RRTConnect, KPIECE1, STRIDE and PRM beside jaxarm's
+default search and fixed higher degrees, ``--runs`` runs of ``--budget`` seconds each.
 """
 
 from __future__ import annotations
@@ -249,7 +253,11 @@ def run_pycma(problem, n_restarts):
 
 def posture_checker(problem):
     """A fast NumPy check of one posture against the problem's obstacles, kept ``margin`` away
-    (polygons by separating axes: a posture within the margin of a corner may be refused)."""
+    (polygons by separating axes: a posture within the margin of a corner may be refused), and
+    for an arm that checks self-collision, every two links that are not neighbours too
+    (``self_collision.posture_pair_separations``)."""
+    from jaxarm.model.self_collision import posture_pair_separations
+
     arrays = problem.arrays
     margin = problem.margin
     world = arrays.world
@@ -279,14 +287,22 @@ def posture_checker(problem):
             gap = np.maximum(gap, np.maximum(along.min(1) - offset, offset - along.max(1)))
             if np.any(gap < margin):
                 return False
-        return True
+        return not (problem.arm.self_collision
+                    and np.any(posture_pair_separations(arrays.lengths, q) < margin))
 
     return free
 
 
 def rrtconnect(problem, budget: float, resolution: float = 0.002):
-    """One OMPL RRTConnect run in joint space (each joint within pi of its start and goal
-    angles; motions checked every ``resolution`` of the space's extent), simplified when solved.
+    """One OMPL RRTConnect run (``ompl_plan``)."""
+    return ompl_plan(problem, budget, resolution, "RRTConnect")
+
+
+def ompl_plan(problem, budget: float, resolution: float = 0.002, planner: str = "RRTConnect"):
+    """One run of an OMPL planner (a class of ``ompl.geometric``: RRTConnect, KPIECE1, STRIDE,
+    PRM, ...) in joint space (each joint within pi of its start and goal angles, a real vector
+    space with its default projection; motions checked every ``resolution`` of the space's
+    extent), simplified when solved.
 
     Returns:
       (solved, seconds to the first solution, seconds in all, waypoints (n, n_joints) or None).
@@ -312,7 +328,7 @@ def rrtconnect(problem, budget: float, resolution: float = 0.002):
     for j in range(n):
         s[j], g[j] = float(start[j]), float(goal[j])
     setup.setStartAndGoalStates(s, g)
-    setup.setPlanner(og.RRTConnect(setup.getSpaceInformation()))
+    setup.setPlanner(getattr(og, planner)(setup.getSpaceInformation()))
     began = time.perf_counter()
     solved = setup.solve(budget)
     first = time.perf_counter() - began
@@ -340,13 +356,87 @@ def run_ompl(problem, n_restarts, budget=1.0):
     return summarise("OMPL RRTConnect + simplify", successes, seconds, firsts, lengths, jerks)
 
 
+OMPL_PLANNERS = ("RRTConnect", "KPIECE1", "STRIDE", "PRM")
+
+
+def kinematic_chain(n_links: int, runs: int, budget: float, degrees: list) -> list:
+    """OMPL's kinematic-chain benchmark (``kinematic-chain-N``): OMPL's planners, jaxarm's
+    default search and jaxarm PSO A with feasibility rules at fixed higher degrees, each with
+    ``budget`` seconds per run; rows of success rate, median seconds to the first solution,
+    median joint-space length, and for jaxarm how many solutions are certified."""
+    problem = jaxarm.load_scenario(f"kinematic-chain-{n_links}")
+    rows = []
+    for planner in OMPL_PLANNERS:
+        found = [ompl_plan(problem, budget, planner=planner) for _ in range(runs)]
+        lengths = [waypoint_metrics(w)[0] for ok, _, _, w in found if ok]
+        rows.append(_chain_row(f"OMPL {planner}", [f[0] for f in found],
+                               [f[1] for f in found if f[0]], lengths, None))
+    searches = [("jaxarm default", problem, {})] + [
+        (f"jaxarm A:feasibility, degree {d}", problem.replace(degree=d),
+         dict(method="A:feasibility", n_restarts=256)) for d in degrees]
+    for name, scene, settings in searches:
+        kwargs = dict(time_limit=budget, progress=False) if not settings else settings
+        began = time.perf_counter()
+        jaxarm.solve(scene, **kwargs)  # compiles
+        first_call = time.perf_counter() - began
+        results, seconds = [], []
+        for seed in range(1, runs + 1):
+            began = time.perf_counter()
+            results.append(jaxarm.solve(scene, seed=seed, **kwargs))
+            seconds.append(time.perf_counter() - began)
+        solved = [r.feasible for r in results]
+        lengths = [path_metrics(scene, r.best_x)[0] for r in results if r.feasible]
+        row = _chain_row(name, solved, [t for t, ok in zip(seconds, solved) if ok], lengths,
+                         sum(bool(r.certified) for r in results))
+        rows.append(row | {"first_call": first_call})
+    return rows
+
+
+def _chain_row(name, solved, seconds, lengths, certified):
+    solved = np.asarray(solved, bool)
+    low, high = wilson_interval(int(solved.sum()), len(solved))
+    median = lambda v: float(np.median(v)) if len(v) else float("nan")  # noqa: E731
+    return Row(method=name, success=solved.mean(), low=low, high=high, first=median(seconds),
+               length=median(lengths), certified=certified, runs=len(solved))
+
+
+def main_kinematic_chain(args) -> None:
+    from ompl import util
+
+    util.RNG.setSeed(1)
+    print(f"jax {jax.__version__} ({jax.default_backend()}), OMPL's kinematic-chain scenes, "
+          f"{args.runs} runs per method, {args.budget:g} s each")
+    for n_links in (int(n) for n in args.kinematic_chain.split(",")):
+        print(f"\n### kinematic-chain-{n_links}\n")
+        print("| method | solved [95 % CI] | median s to a solution | median joint-space length "
+              "(rad) | certified | first call, compiling (s) |")
+        print("|---|---|---|---|---|---|")
+        for row in kinematic_chain(n_links, args.runs, args.budget, args.degrees):
+            certified = "–" if row["certified"] is None else f"{row['certified']}/{row['runs']}"
+            first_call = f"{row['first_call']:.1f}" if "first_call" in row else "–"
+            print(f"| {row['method']} | {row['success']:.0%} [{row['low']:.0%}, "
+                  f"{row['high']:.0%}] | {row['first']:.2f} | {row['length']:.2f} | "
+                  f"{certified} | {first_call} |", flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--kinematic-chain", metavar="SIZES",
+                        help="run OMPL's kinematic-chain benchmark instead, on these chain "
+                             "lengths (comma-separated, from 5, 10, 20)")
+    parser.add_argument("--runs", type=int, default=5, help="runs per method (kinematic chain)")
+    parser.add_argument("--budget", type=float, default=10.0,
+                        help="seconds per run (kinematic chain)")
+    parser.add_argument("--degrees", type=lambda v: [int(d) for d in v.split(",")],
+                        default=[10, 14], help="jaxarm's fixed degrees (kinematic chain)")
     parser.add_argument("--restarts", type=int, default=30)
     parser.add_argument("--scenarios", default="paper-case-1,paper-case-2,narrow-gap,death-trap")
     parser.add_argument("--peers", default=",".join(PEERS),
                         help=f"comma-separated, from {','.join(PEERS)} (all)")
     args = parser.parse_args()
+    if args.kinematic_chain:
+        main_kinematic_chain(args)
+        return
     peers = args.peers.split(",")
     unknown = sorted(set(peers) - set(PEERS))
     if unknown:

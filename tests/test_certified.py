@@ -201,7 +201,8 @@ def test_window_chunks_and_lane_counts_do_not_change_verdicts(rng, scene):
     # program of the dense check and of the test above).
     one_chunk_narrow = jaxarm.certify(problem, x)._asdict()
     one_chunk_narrow["violation"] = jaxarm.violation(problem, x)
-    for found_afterwards in ("witness_link", "witness_obstacle"):  # by ``certify``, not the check
+    for found_afterwards in ("witness_link", "witness_obstacle", "witness_other_link"):  # by
+        # ``certify``, not the check
         del one_chunk_narrow[found_afterwards]
     lanes = 16
     sizes = certified.CheckSizes(window_chunk=16, swing_chunk=16, pair_chunk=16,

@@ -1,10 +1,14 @@
 """Self-collision (``jaxarm.model.self_collision``): links that are not neighbours must not meet,
 in both checks, against an independent oracle (shapely distances between the links)."""
 
+import math
+
 import numpy as np
 import pytest
+import shapely
 
 import jaxarm
+from jaxarm.model import self_collision
 from jaxarm.testing import dense_clearance, oracle_path_collides, self_clearance
 
 
@@ -101,3 +105,56 @@ def test_the_five_link_detour_is_solved_with_self_collision_on():
     assert result.certified
     x = np.asarray(result.best_x)[None]
     assert self_clearance(problem, x, 20001)[0] > 0 and dense_clearance(problem, x, 20001)[0] > 0
+
+
+def test_a_postures_pairs_are_measured_as_shapely_measures_them(rng):
+    """The host's pair separations (what refuses a start or goal): shapely's distance where
+    two links are apart, negative exactly where they cross."""
+    problem = curling_chain(6)
+    checked = 0
+    for _ in range(200):
+        theta = rng.uniform(-2.8, 2.8, 6)
+        ours = self_collision.posture_pair_separations(problem.arm.lengths, theta)
+        links = _links(problem.arm.lengths, theta)
+        for (i, j), value in zip(self_collision.pairs(6), ours):
+            a, b = shapely.LineString(links[i]), shapely.LineString(links[j])
+            if a.crosses(b):
+                assert value < 0
+            else:
+                assert value == pytest.approx(a.distance(b), abs=1e-9)
+            checked += 1
+    assert checked == 2000
+
+
+def _links(lengths, theta):
+    """Each link's end points, written out again (float64)."""
+    points, angle = [(0.0, 0.0)], 0.0
+    for length, turn in zip(lengths, theta):
+        angle += turn
+        x, y = points[-1]
+        points.append((x + length * math.cos(angle), y + length * math.sin(angle)))
+    return [(points[k], points[k + 1]) for k in range(len(lengths))]
+
+
+@pytest.mark.parametrize("n_links", [5, 10, 20])
+def test_the_kinematic_chain_scenes_are_ompls(n_links):
+    """kinematic-chain-N as OMPL's demo builds it (demos/KinematicChainBenchmark.cpp), in cm:
+    links of 100/N, start [0, pi/N, ...], goal [pi - 0.001, 0, ...], and the horn's two
+    polylines of N - 1 walls from (100/N, -+100 eps), eps = ln(N)/N, the k-th along k pi/N, of
+    signed lengths (100/N)(1 +- pi eps)."""
+    problem = jaxarm.load_scenario(f"kinematic-chain-{n_links}")
+    assert problem.arm.lengths == (100.0 / n_links,) * n_links and problem.arm.self_collision
+    np.testing.assert_allclose(problem.start, [0.0] + [math.pi / n_links] * (n_links - 1))
+    np.testing.assert_allclose(problem.goal, [math.pi - 0.001] + [0.0] * (n_links - 1))
+    eps = math.log(n_links) / n_links
+    walls = np.asarray(problem.world.segments)  # (2 (N - 1), 2, 2)
+    assert walls.shape == (2 * (n_links - 1), 2, 2)
+    for side, polyline in ((-1, walls[:n_links - 1]), (1, walls[n_links - 1:])):
+        np.testing.assert_allclose(polyline[0, 0], [100.0 / n_links, side * 100 * eps])
+        np.testing.assert_allclose(polyline[1:, 0], polyline[:-1, 1])  # joined end to end
+        # the demo's signed length: for N = 5, 1 - pi eps < 0 and the upper walls run backwards
+        turn = np.arange(1, n_links) * math.pi / n_links
+        np.testing.assert_allclose(polyline[:, 1] - polyline[:, 0],
+                                   100.0 / n_links * (1 - side * math.pi * eps)
+                                   * np.stack([np.cos(turn), np.sin(turn)], axis=-1),
+                                   rtol=1e-12, atol=1e-12)

@@ -94,13 +94,11 @@ def _link_separations(lengths, world, angles: list):
     symmetric, +inf elsewhere (and everywhere for one that does not)."""
     n_joints = len(angles)
     between = jnp.full((n_joints, n_joints), jnp.inf, angles[0].dtype)
-    for frame in self_collision.frames(lengths, world, angles):
-        links = link_endpoints(frame.lengths, frame.joints)[self_collision.TESTED]
-        for offset, link in enumerate(links):
-            other = frame.first + 2 + offset
-            distance = world_lib.polygon_separation_xy(*link, frame.wall)[0]
-            between = between.at[frame.first, other].set(distance)
-            between = between.at[other, frame.first].set(distance)
+    if world.link_walls is None:
+        return between
+    separations = self_collision.pair_separations(lengths, world.link_walls, angles)
+    for (first, other), distance in zip(self_collision.pairs(n_joints), separations):
+        between = between.at[first, other].set(distance).at[other, first].set(distance)
     return between
 
 

@@ -239,18 +239,16 @@ class Problem:
     def _check_self_collision(self, which: str, theta, lengths) -> None:
         """Links that are not neighbours neither cross nor come closer than the margin (in
         each frame of ``self_collision``: the later links against the earlier one)."""
-        for first, wall in enumerate(self_collision.link_walls(lengths)):
-            chain = np.concatenate([[0.0], theta[first + 1:]]).astype(theta.dtype)
-            separation = np.asarray(_posture_separation(lengths[first:], wall, chain))[2:, 0]
-            closest = int(np.argmin(separation))
-            if separation[closest] < self.margin:
-                pair = f"links {first + 1} and {first + closest + 3}"
-                raise ValueError(
-                    f"{which} posture {list(getattr(self, which))} collides with itself: "
-                    + (f"{pair} cross (by {-separation[closest]:.4g} cm)"
-                       if separation[closest] < 0 else
-                       f"{pair} are {separation[closest]:.4g} cm apart, closer than margin "
-                       f"{self.margin:g} cm"))
+        separation = self_collision.posture_pair_separations(lengths, theta)
+        closest = int(np.argmin(separation))
+        if separation[closest] < self.margin:
+            i, j = self_collision.pairs(self.n_joints)[closest]
+            pair = f"links {i + 1} and {j + 1}"
+            raise ValueError(
+                f"{which} posture {list(getattr(self, which))} collides with itself: "
+                + (f"{pair} cross (by {-separation[closest]:.4g} cm)" if separation[closest] < 0
+                   else f"{pair} are {separation[closest]:.4g} cm apart, closer than margin "
+                        f"{self.margin:g} cm"))
 
     def _check_posture(self, which: str, theta, lengths, world, names) -> None:
         depth = np.asarray(_posture_depth(lengths, world, theta))

@@ -15,7 +15,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import jax.numpy as jnp
+import numpy as np
 
+from jaxarm.model import world as world_lib
+from jaxarm.model.arm import link_endpoints
 from jaxarm.model.world import World, WorldArrays
 
 
@@ -38,10 +41,21 @@ def frames(lengths, world: WorldArrays, per_joint: list) -> list[Frame]:
     """Every frame of an arm whose world checks self-collision (``world.link_walls`` set;
     else none). ``per_joint``: a value per joint (angles, speeds, or a list of per-joint lists,
     one per Taylor order), each kept as it is but the frame's own link's, which is 0."""
-    if world.link_walls is None:
-        return []
+    return wall_frames(lengths, world.link_walls or (), per_joint)
+
+
+def wall_frames(lengths, walls, per_joint: list) -> list[Frame]:
+    """``frames`` from the walls themselves (``link_walls``)."""
     return [Frame(first, lengths[first:], wall, in_frame(first, per_joint))
-            for first, wall in enumerate(world.link_walls)]
+            for first, wall in enumerate(walls)]
+
+
+def pair_separations(lengths, walls, theta: list) -> list:
+    """The exact signed separation of every pair of links (``pairs``' order) at postures:
+    their distance, or minus how deep they cross; each of theta's shape (...)."""
+    return [world_lib.polygon_separation_xy(*link, frame.wall)[0]
+            for frame in wall_frames(lengths, walls, theta)
+            for link in link_endpoints(frame.lengths, frame.joints)[TESTED]]
 
 
 def in_frame(first: int, per_joint: list) -> list:
@@ -59,3 +73,37 @@ def pairs(n_joints: int) -> list[tuple[int, int]]:
     """The pairs (i, j) of links checked, in the order the frames give them: (0, 2), (0, 3),
     ..., (1, 3), ..."""
     return [(i, j) for i in range(n_joints - 2) for j in range(i + 2, n_joints)]
+
+
+def posture_pair_separations(lengths, theta) -> np.ndarray:
+    """``pair_separations`` of one posture on the host (float64 NumPy, every pair at once):
+    what ``Problem`` checks a start or goal posture with, at a cost that does not grow with a
+    compiled program's size. Shape (n_pairs,), ``pairs``' order.
+
+    Apart, the distance: the least of the four end points' distances to the other segment.
+    Crossing, minus the depth the checks' separating axes give: the smaller of the two
+    segments' overlaps across the other's line.
+    """
+    absolute = np.cumsum(np.asarray(theta, np.float64))
+    steps = np.asarray(lengths, np.float64)[:, None] * np.stack([np.cos(absolute),
+                                                                 np.sin(absolute)], axis=-1)
+    joints = np.concatenate([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
+    i, j = np.array(pairs(len(absolute)), dtype=int).reshape(-1, 2).T
+    p0, p1, q0, q1 = joints[i], joints[i + 1], joints[j], joints[j + 1]
+
+    def cross(u, v):
+        return u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+
+    def to_segment(point, a, b):
+        edge = b - a
+        t = np.clip(np.sum((point - a) * edge, axis=1) / np.sum(edge * edge, axis=1), 0, 1)
+        return np.linalg.norm(point - a - t[:, None] * edge, axis=1)
+
+    distance = np.minimum.reduce([to_segment(p0, q0, q1), to_segment(p1, q0, q1),
+                                  to_segment(q0, p0, p1), to_segment(q1, p0, p1)])
+    across_p = np.stack([cross(p1 - p0, q0 - p0), cross(p1 - p0, q1 - p0)])
+    across_q = np.stack([cross(q1 - q0, p0 - q0), cross(q1 - q0, p1 - q0)])
+    crossing = (across_p[0] * across_p[1] < 0) & (across_q[0] * across_q[1] < 0)
+    depth = np.minimum(np.abs(across_p).min(axis=0) / np.linalg.norm(p1 - p0, axis=1),
+                       np.abs(across_q).min(axis=0) / np.linalg.norm(q1 - q0, axis=1))
+    return np.where(crossing, -depth, distance)
