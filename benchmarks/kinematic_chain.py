@@ -21,9 +21,13 @@ import math
 import pathlib
 
 import jaxarm
+from jaxarm.io import scenario_files
 
 SCALE = 100.0  # cm per unit of the demo
 SIZES = (5, 10, 20)
+HEADER = ("# OMPL's planar kinematic-chain benchmark (demos/KinematicChainBenchmark.cpp) in cm,\n"
+          "# written by benchmarks/kinematic_chain.py --write: the chain, its start and goal, and\n"
+          "# the horn of createHornEnvironment(N, ln(N) / N), scaled by 100.\n")
 SCENARIOS = pathlib.Path(__file__).resolve().parents[1] / "jaxarm" / "scenarios"
 
 
@@ -64,7 +68,9 @@ def main() -> None:
         problem = kinematic_chain(n_links)
         print(problem.summary())
         if args.write:
-            print("wrote", jaxarm.save_scenario(problem, SCENARIOS / f"{problem.name}.toml"))
+            path = SCENARIOS / f"{problem.name}.toml"
+            path.write_text(HEADER + scenario_files.to_toml(problem), encoding="utf-8")
+            print("wrote", path)
 
 
 if __name__ == "__main__":

@@ -11,6 +11,10 @@ unrolled) against the machine's measured float32 matmul peak.
 beside ``jaxarm.fitness`` alone and the three public functions called one after the other, on
 20,000 random paths of paper-case-1, sampled and certified, called from the host and inside a
 caller's ``jax.jit``, in turns in the same run.
+
+``--self-collision`` instead times ``jaxarm.fitness`` on 20,000 random paths with and without
+self-collision (``Arm(self_collision=True)``), sampled and certified, on paper-case-1 (3 links)
+and five-link-detour (5 links), in turns in the same run.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxarm
+import jaxarm.model.self_collision
 from jaxarm.checks.evaluate import evaluate
 from jaxarm.model import path
 
@@ -157,6 +162,28 @@ def evaluate_section(repeats: int) -> None:
                   f"{seconds['evaluate'] / seconds['fitness']:.2f} |", flush=True)
 
 
+def self_collision_section(repeats: int) -> None:
+    """The ``--self-collision`` table (module docstring)."""
+    x = {}
+    print(f"jax {jax.__version__} ({jax.default_backend()}), jaxarm.fitness on 20,000 random "
+          f"paths, median of {repeats} calls in turns, warm\n")
+    print("| scene | check | without (s) | with self-collision (s) | with / without |")
+    print("|---|---|---|---|---|")
+    for name, low in (("paper-case-1", 100.0), ("five-link-detour", 100.0)):
+        scene = jaxarm.load_scenario(name)
+        x = jnp.asarray(np.random.default_rng(0).uniform(-low, low, (20_000, scene.n_free)),
+                        jnp.float32)
+        with_pairs = scene.replace(arm=jaxarm.Arm(scene.arm.lengths, self_collision=True))
+        for check in ("sampled", "certified"):
+            runs = {label: (lambda p=p.replace(collision=check):
+                            jax.block_until_ready(jaxarm.fitness(p, x)))
+                    for label, p in (("without", scene), ("with", with_pairs))}
+            seconds = interleaved_seconds(runs, repeats)
+            print(f"| {name} ({scene.n_joints} links, {len(jaxarm.model.self_collision.pairs(scene.n_joints))} "
+                  f"pairs) | {check} | {seconds['without']:.4f} | {seconds['with']:.4f} | "
+                  f"{seconds['with'] / seconds['without']:.2f} |", flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--max-batch", type=int, default=1_000_000)
@@ -164,7 +191,11 @@ def main():
     parser.add_argument("--certified-max-batch", type=int, default=100_000)
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--evaluate", action="store_true")
+    parser.add_argument("--self-collision", action="store_true")
     args = parser.parse_args()
+    if args.self_collision:
+        self_collision_section(args.repeats)
+        return
     if args.evaluate:
         evaluate_section(args.repeats)
         return

@@ -620,10 +620,12 @@ def _table_6(report: _Report, case2) -> None:
     report.add("")
 
 
-# Shipped scenes of hundreds of obstacles, left out of the default suite: their cost is
-# measured on its own (``benchmarks/scene_scale.py``), and their searches would take the
-# suite many times as long. Name them in ``suite`` to study them.
-AT_SCALE = ("clutter-100", "clutter-500", "workcell-map")
+# Shipped scenes left out of the default suite: those of hundreds of obstacles, whose cost is
+# measured on its own (``benchmarks/scene_scale.py``), and OMPL's kinematic chains of 5 to 20
+# links with self-collision (``benchmarks/peers.py --kinematic-chain``); their searches would
+# take the suite many times as long. Name them in ``suite`` to study them.
+AT_SCALE = ("clutter-100", "clutter-500", "workcell-map", "kinematic-chain-5",
+            "kinematic-chain-10", "kinematic-chain-20")
 
 
 def _suite_problems(names) -> list:
