@@ -57,10 +57,12 @@ def test_an_interrupted_study_resumes_to_the_same_csv(case2, tmp_path, monkeypat
     assert calls == []
 
 
-def test_another_chunk_size_or_more_restarts_resume_it_too(case2, tmp_path):
+def test_another_chunk_size_or_more_restarts_resume_it_too(case2, tmp_path, monkeypatch):
     study.escape_study(case2, ["A"], n_restarts=5, chunk_size=5, checkpoint=tmp_path, **SIZES)
+    calls = _interrupt_after(monkeypatch, chunks=100)
     more = study.escape_study(case2, ["A"], n_restarts=8, chunk_size=2, checkpoint=tmp_path,
                               **SIZES)
+    assert calls == [5, 7]  # the saved five reused, the other three run
     whole = study.escape_study(case2, ["A"], n_restarts=8, chunk_size=8, **SIZES)
     assert more.to_csv() == whole.to_csv()
     fewer = study.escape_study(case2, ["A"], n_restarts=3, checkpoint=tmp_path, **SIZES)

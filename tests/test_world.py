@@ -127,3 +127,12 @@ def test_a_segment_is_a_wall_of_zero_thickness(end, depth):
     assert separation == pytest.approx(-depth if depth > 0 else max(float(distance[0]), 0.0),
                                        abs=1e-5)
     assert world.obstacle_name(0) == "segments[0]" and world.capacities() == (0, 1, 2)
+
+
+def test_a_segment_on_the_links_own_line_is_apart_by_its_distance():
+    """Collinear and apart: no separating axis among the two normals, yet not touching (a
+    straight arm's links, each in the frame of an earlier one, lie so)."""
+    world = jaxarm.World(segments=[((0.0, 0.0), (10.0, 0.0))])
+    start, end = jnp.array([[20.0, 0.0], [10.0, 0.0]]), jnp.array([[30.0, 0.0], [15.0, 0.0]])
+    separation = np.asarray(segment_separation(start, end, world.pack()))[:, 0]
+    np.testing.assert_allclose(separation, [10.0, 0.0], atol=1e-6)  # apart; touching its end

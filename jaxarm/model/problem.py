@@ -240,6 +240,8 @@ class Problem:
         """Links that are not neighbours neither cross nor come closer than the margin (in
         each frame of ``self_collision``: the later links against the earlier one)."""
         separation = self_collision.posture_pair_separations(lengths, theta)
+        if separation.size == 0:  # one or two links: no pair to meet
+            return
         closest = int(np.argmin(separation))
         if separation[closest] < self.margin:
             i, j = self_collision.pairs(self.n_joints)[closest]

@@ -150,7 +150,7 @@ class World:
         if len(self.circles) > n_circle_slots or len(polygons) > n_polygon_slots:
             raise ValueError(
                 f"capacities {capacities} too small for {len(self.circles)} circles and "
-                f"{len(polygons)} boxes/polygons"
+                f"{len(polygons)} boxes, polygons and segments"
             )
         circles = np.zeros((n_circle_slots, 3))
         circles[:, :2], circles[:, 2] = 1e4, 1.0  # unused slots, far away and masked
@@ -441,7 +441,10 @@ def polygon_separation_xy(sx, sy, ex, ey, world: WorldArrays, vertex_axis: bool 
                 sx, sy, ex, ey, *(leading_slots(a[:, v, i], n) for a in (vertices, following)
                                   for i in (0, 1)),
                 leading_slots(world.edge_valid[:, v], n)))
-    signed = jnp.where(gap > 0, distance, gap)
+    # A segment (two edges) on the link's own line, apart from it, has no separating axis
+    # here (both normals give 0): its gap 0 is no contact, and its distance is the separation.
+    apart = (gap > 0) | ((gap == 0) & leading_slots(world.edge_valid.sum(axis=1) == 2, n))
+    signed = jnp.where(apart, distance, gap)
     return jnp.where(leading_slots(world.polygon_valid, n), signed, jnp.inf)
 
 
