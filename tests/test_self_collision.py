@@ -3,6 +3,8 @@ in both checks, against an independent oracle (shapely distances between the lin
 
 import math
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 import shapely
@@ -10,6 +12,7 @@ import shapely
 import jaxarm
 from jaxarm.checks.evaluate import deepest_contact
 from jaxarm.model import self_collision
+from jaxarm.model.arm import link_endpoints
 from jaxarm.testing import dense_clearance, oracle_path_collides, self_clearance
 
 
@@ -123,6 +126,20 @@ def test_a_postures_pairs_are_measured_as_shapely_measures_them(rng):
                 assert value == pytest.approx(a.distance(b), abs=1e-9)
             checked += 1
     assert checked == 2000
+
+
+def test_collinear_links_are_apart_by_their_gap_in_float32():
+    """A straight chain turning, compiled on a batch: the sides of collinear links are rounding
+    noise, which must not read as a crossing (shapely's distance)."""
+    lengths = np.array([20.0, 15.0, 10.0, 12.0, 8.0])
+    turns = np.linspace(0.0, 1.0, 201, dtype=np.float32)
+    separations = jax.jit(lambda turn: jnp.stack(self_collision.pair_separations(link_endpoints(
+        jnp.asarray(lengths, jnp.float32), [turn] + [jnp.zeros_like(turn)] * 4))))(turns)
+    for turn, ours in zip(turns, np.asarray(separations).T):
+        links = _links(lengths, [float(turn), 0.0, 0.0, 0.0, 0.0])
+        for (i, j), value in zip(self_collision.pairs(5), ours):
+            a, b = shapely.LineString(links[i]), shapely.LineString(links[j])
+            assert value == pytest.approx(a.distance(b), abs=1e-3), (turn, i, j)
 
 
 def _links(lengths, theta):

@@ -62,10 +62,10 @@ def posture_margin_depth(lengths, world, theta: list, margin=0.0, *, exact: bool
     alone: the others are farther than the tables' reach, which is at least the margin.
     """
     total = jnp.zeros_like(theta[0])
-    for frame in self_collision.frames(lengths, world, theta):  # pairs of links
-        for link in link_endpoints(frame.lengths, frame.joints)[self_collision.TESTED]:
-            total = _add_link_margin_depth(total, link, frame.wall, margin, exact=exact)
     links = link_endpoints(lengths, theta)
+    if world.link_walls is not None:  # pairs of links
+        for separation in self_collision.pair_separations(links):
+            total = total + jnp.maximum(margin - separation, 0.0)
     if world.near is not None:
         for index, link in enumerate(links):
             total = total + nearby.over_blocks(
@@ -111,11 +111,11 @@ def posture_clearance_bound(lengths, world, theta: list, *, exact: bool) -> list
       self-collision, one per pair of links, ``self_collision.pairs``: their distance);
       negative values are minus a penetration depth; +inf for a world without obstacles.
     """
-    return link_clearance_bounds(world, link_endpoints(lengths, theta), exact=exact) + [
-        bound for frame in self_collision.frames(lengths, world, theta)
-        for bound in link_clearance_bounds(
-            frame.wall, link_endpoints(frame.lengths, frame.joints)[self_collision.TESTED],
-            exact=exact)]
+    links = link_endpoints(lengths, theta)
+    bounds = link_clearance_bounds(world, links, exact=exact)
+    if world.link_walls is None:
+        return bounds
+    return bounds + self_collision.pair_separations(links)
 
 
 def link_clearance_bounds(world, links: list, *, exact: bool) -> list:

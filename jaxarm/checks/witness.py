@@ -96,10 +96,9 @@ def _link_separations(lengths, world, angles: list):
     between = jnp.full((n_joints, n_joints), jnp.inf, angles[0].dtype)
     if world.link_walls is None:
         return between
-    separations = self_collision.pair_separations(lengths, world.link_walls, angles)
-    for (first, other), distance in zip(self_collision.pairs(n_joints), separations):
-        between = between.at[first, other].set(distance).at[other, first].set(distance)
-    return between
+    first, other = np.array(self_collision.pairs(n_joints)).T
+    separations = jnp.stack(self_collision.pair_separations(link_endpoints(lengths, angles)))
+    return between.at[first, other].set(separations).at[other, first].set(separations)
 
 
 _link_distances = jit(link_distances)

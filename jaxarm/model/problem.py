@@ -316,7 +316,7 @@ class Problem:
         """The world packed at the problem's capacities, with near tables for this arm and
         margin when it is large (``jaxarm.model.nearby``)."""
         world = self.world.pack(self.capacities)
-        if self.arm.self_collision:
+        if self.arm.self_collision and self.n_joints >= 3:  # two links have no pair to check
             world = world._replace(link_walls=self_collision.link_walls(self.arm.lengths))
         if not nearby.uses_broad_phase(self.capacities):
             return world

@@ -7,66 +7,138 @@ joint angle is 0 and whose other joints are the arm's. Each link i = 0 .. n - 3 
 *frame*: a chain (its lengths and joint values) against a world of one segment, its links 2,
 3, ... tested as any link is tested against obstacles. So every bound of both checks holds for
 the pairs as it holds for obstacles, with the motion of the later link relative to the earlier
-one, which is slower than either's own.
+one, which is slower than either's own. The frames are checked on an array axis
+(``over_pairs``), so a program's size does not grow with the number of pairs.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+import functools
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm.model import world as world_lib
 from jaxarm.model.arm import link_endpoints
 from jaxarm.model.world import World, WorldArrays
 
-
-class Frame(NamedTuple):
-    """The links after link ``first``, in its frame (module docstring)."""
-
-    first: int  # the link that is the wall
-    lengths: object  # shape (n_joints - first,): links first, first + 1, ...
-    wall: WorldArrays  # link ``first`` as a segment from (0, 0) to (l_first, 0)
-    joints: list  # per joint of the chain: its values (joint 0: zeros)
-
-
-def link_walls(lengths) -> tuple[WorldArrays, ...]:
-    """Links 0 .. n - 3, each as a world of one segment in its own frame (host NumPy)."""
-    return tuple(World(segments=[((0.0, 0.0), (float(length), 0.0))]).pack()
-                 for length in list(lengths)[:-2])
-
-
-def frames(lengths, world: WorldArrays, per_joint: list) -> list[Frame]:
-    """Every frame of an arm whose world checks self-collision (``world.link_walls`` set;
-    else none). ``per_joint``: a value per joint (angles, speeds, or a list of per-joint lists,
-    one per Taylor order), each kept as it is but the frame's own link's, which is 0."""
-    return wall_frames(lengths, world.link_walls or (), per_joint)
-
-
-def wall_frames(lengths, walls, per_joint: list) -> list[Frame]:
-    """``frames`` from the walls themselves (``link_walls``)."""
-    return [Frame(first, lengths[first:], wall, in_frame(first, per_joint))
-            for first, wall in enumerate(walls)]
-
-
-def pair_separations(lengths, walls, theta: list) -> list:
-    """The exact signed separation of every pair of links (``pairs``' order) at postures:
-    their distance, or minus how deep they cross; each of theta's shape (...)."""
-    return [world_lib.polygon_separation_xy(*link, frame.wall)[0]
-            for frame in wall_frames(lengths, walls, theta)
-            for link in link_endpoints(frame.lengths, frame.joints)[TESTED]]
-
-
-def in_frame(first: int, per_joint: list) -> list:
-    """``per_joint`` of the chain from link ``first`` on, that link's own value 0; a list of
-    such lists (Taylor orders) is taken order by order."""
-    if isinstance(per_joint[0], list):
-        return [in_frame(first, order) for order in per_joint]
-    return [jnp.zeros_like(per_joint[0])] + list(per_joint[first + 1:])
-
-
 TESTED = slice(2, None)  # a frame's links tested against its wall: not the wall, nor its neighbour
+
+
+def link_walls(lengths) -> WorldArrays:
+    """Links 0 .. n - 3, each as a world of one segment in its own frame, stacked on a leading
+    axis (host NumPy): the frames' walls, in ``over_pairs``' order."""
+    walls = [World(segments=[((0.0, 0.0), (float(length), 0.0))]).pack()
+             for length in list(lengths)[:-2]]
+    return WorldArrays(*(None if field[0] is None else np.stack(field) for field in zip(*walls)))
+
+
+def over_pairs(lengths, walls: WorldArrays, per_joint: list, per_frame):
+    """``per_frame`` run on every frame at once: one row per (frame, link) of the frames' chains.
+
+    The frames are padded to the arm's length and taken on an array axis (``jax.vmap``), so a
+    compiled program's size does not grow with the pairs: frame i's chain is links i, i + 1,
+    ... (its first joint 0), then links of the arm's last length straight on, whose rows are
+    padding.
+
+    Args:
+      walls: ``link_walls``, the frames' walls (``WorldArrays.link_walls``).
+      per_joint: a value per joint, each of shape (...,) (angles, speeds), or a list of such
+        lists (one per Taylor order).
+      per_frame: ``(lengths, wall, joints) -> list`` of a pytree per link of a chain of
+        n_joints links (``lengths`` shape (n_joints,), ``wall`` a one-segment world,
+        ``joints`` as ``per_joint``, joint 0 a zero).
+
+    Returns:
+      ``(rows, real)``: the pytree of the ``TESTED`` links' values, each leaf of shape
+      (n_frames * (n_joints - 2), ...), frame-major (the real rows in ``pairs``' order), and
+      ``real``, host bool of shape (n_frames * (n_joints - 2),): False on padding rows, whose
+      values are finite and mean nothing.
+    """
+    nested = isinstance(per_joint[0], list)
+    n_joints = len(per_joint[0] if nested else per_joint)
+    frame = np.arange(n_joints - 2)[:, None]
+    step = np.arange(n_joints)[None, :]
+    inside = frame + step < n_joints  # (n_frames, n_joints): the chain's own links
+    joint = np.where((step >= 1) & inside, frame + step, n_joints)  # index n_joints: a zero
+    link = np.minimum(frame + step, n_joints - 1)
+
+    def gather(values: list):  # (n_frames, n_joints, ...), stacked (not an XLA gather)
+        values = jnp.broadcast_arrays(*values)
+        values = values + [jnp.zeros_like(values[0])]
+        return jnp.stack([jnp.stack([values[i] for i in row]) for row in joint])
+
+    def one_frame(lengths, wall, joints):
+        joints = [list(order) for order in joints] if nested else list(joints)
+        values = per_frame(lengths, wall, joints)[TESTED]
+        return jax.tree.map(lambda *links: jnp.stack(links), *values)
+
+    rows = jax.vmap(one_frame)(jnp.asarray(lengths)[link], walls,
+                               [gather(order) for order in per_joint] if nested
+                               else gather(per_joint))
+    rows = jax.tree.map(lambda leaf: leaf.reshape((-1,) + leaf.shape[2:]), rows)
+    return rows, real_rows(n_joints)
+
+
+def real_rows(n_joints: int) -> np.ndarray:
+    """Which of ``over_pairs``' rows are pairs of links (True) and which padding (False):
+    host bool of shape ((n_joints - 2) ** 2,)."""
+    frame, link = np.arange(n_joints - 2)[:, None], np.arange(2, n_joints)[None, :]
+    return (frame + link < n_joints).reshape(-1)
+
+
+def only_real(rows, real, padding):
+    """``rows`` (``over_pairs``) with ``padding`` in place of the padding rows."""
+    return jnp.where(real.reshape((-1,) + (1,) * (rows.ndim - 1)), rows, padding)
+
+
+def pair_separations(links: list, xp=jnp) -> list:
+    """The exact signed separation of every pair of links (``pairs``' order): their distance,
+    or minus how deep they cross (``segment_separations``).
+
+    Args:
+      links: every link's end points, ``link_endpoints``' tuples ``(x0, y0, x1, y1)`` (the
+        arm's own frame: no frames needed for a posture), each coordinate of shape (...,).
+      xp: ``jax.numpy``, or ``numpy`` on the host.
+
+    Returns:
+      A list of n_pairs arrays of shape (...,). Pair by pair: on an array axis, XLA's CPU
+      backend ran the sampled check several times slower, and these few operations per pair
+      compile fast.
+    """
+    return [segment_separations(links[i], links[j], xp) for i, j in pairs(len(links))]
+
+
+def segment_separations(p, q, xp=jnp):
+    """Signed separation of segments ``p`` and ``q`` (``(x0, y0, x1, y1)``, each coordinate of
+    one shape): apart, the distance, the least of the four end points' distances to the other
+    segment; crossing, minus how deep: the smaller of the two segments' overlaps across the
+    other's line (what the separating axes of each one's normal give)."""
+    def to_segment(px, py, ax, ay, bx, by):
+        ex, ey, dx, dy = bx - ax, by - ay, px - ax, py - ay
+        t = xp.clip((dx * ex + dy * ey) / (ex * ex + ey * ey), 0.0, 1.0)
+        return xp.hypot(dx - t * ex, dy - t * ey)
+
+    def across(a, b):  # b's end points' sides of a's line, times a's length
+        (ax, ay, bx, by), (cx, cy, dx, dy) = a, b
+        ex, ey = bx - ax, by - ay
+        return ex * (cy - ay) - ey * (cx - ax), ex * (dy - ay) - ey * (dx - ax)
+
+    distance = functools.reduce(xp.minimum, [
+        to_segment(*p[:2], *q), to_segment(*p[2:], *q), to_segment(*q[:2], *p),
+        to_segment(*q[2:], *p)])
+    across_p, across_q = across(p, q), across(q, p)
+    # Each one's ends on both sides of the other's line, and their boxes overlapping: the sides
+    # of collinear segments are rounding noise, their boxes exact.
+    boxes = [xp.minimum(xp.maximum(p[k], p[k + 2]), xp.maximum(q[k], q[k + 2]))
+             >= xp.maximum(xp.minimum(p[k], p[k + 2]), xp.minimum(q[k], q[k + 2]))
+             for k in (0, 1)]
+    crossing = ((across_p[0] * across_p[1] < 0) & (across_q[0] * across_q[1] < 0)
+                & boxes[0] & boxes[1])
+    depth = xp.minimum(
+        xp.minimum(xp.abs(across_p[0]), xp.abs(across_p[1])) / xp.hypot(p[2] - p[0], p[3] - p[1]),
+        xp.minimum(xp.abs(across_q[0]), xp.abs(across_q[1])) / xp.hypot(q[2] - q[0], q[3] - q[1]))
+    return xp.where(crossing, -depth, distance)
 
 
 def pairs(n_joints: int) -> list[tuple[int, int]]:
@@ -78,32 +150,10 @@ def pairs(n_joints: int) -> list[tuple[int, int]]:
 def posture_pair_separations(lengths, theta) -> np.ndarray:
     """``pair_separations`` of one posture on the host (float64 NumPy, every pair at once):
     what ``Problem`` checks a start or goal posture with, at a cost that does not grow with a
-    compiled program's size. Shape (n_pairs,), ``pairs``' order.
-
-    Apart, the distance: the least of the four end points' distances to the other segment.
-    Crossing, minus the depth the checks' separating axes give: the smaller of the two
-    segments' overlaps across the other's line.
-    """
+    compiled program's size. Shape (n_pairs,), ``pairs``' order."""
     absolute = np.cumsum(np.asarray(theta, np.float64))
     steps = np.asarray(lengths, np.float64)[:, None] * np.stack([np.cos(absolute),
                                                                  np.sin(absolute)], axis=-1)
     joints = np.concatenate([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
-    i, j = np.array(pairs(len(absolute)), dtype=int).reshape(-1, 2).T
-    p0, p1, q0, q1 = joints[i], joints[i + 1], joints[j], joints[j + 1]
-
-    def cross(u, v):
-        return u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
-
-    def to_segment(point, a, b):
-        edge = b - a
-        t = np.clip(np.sum((point - a) * edge, axis=1) / np.sum(edge * edge, axis=1), 0, 1)
-        return np.linalg.norm(point - a - t[:, None] * edge, axis=1)
-
-    distance = np.minimum.reduce([to_segment(p0, q0, q1), to_segment(p1, q0, q1),
-                                  to_segment(q0, p0, p1), to_segment(q1, p0, p1)])
-    across_p = np.stack([cross(p1 - p0, q0 - p0), cross(p1 - p0, q1 - p0)])
-    across_q = np.stack([cross(q1 - q0, p0 - q0), cross(q1 - q0, p1 - q0)])
-    crossing = (across_p[0] * across_p[1] < 0) & (across_q[0] * across_q[1] < 0)
-    depth = np.minimum(np.abs(across_p).min(axis=0) / np.linalg.norm(p1 - p0, axis=1),
-                       np.abs(across_q).min(axis=0) / np.linalg.norm(q1 - q0, axis=1))
-    return np.where(crossing, -depth, distance)
+    return np.array(pair_separations([(*joints[k], *joints[k + 1])
+                                      for k in range(len(absolute))], np))

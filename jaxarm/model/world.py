@@ -45,8 +45,9 @@ class WorldArrays(NamedTuple):
     # The broad phase's ``jaxarm.model.nearby.NearTables`` of a large world for its arm (None:
     # every slot is tested; ``Problem.arrays`` sets it).
     near: object = None
-    # An arm that checks self-collision: its links 0 .. n - 3 as walls in their own frames
-    # (``jaxarm.model.self_collision``; None: not checked; ``Problem.arrays`` sets it).
+    # An arm that checks self-collision: its links 0 .. n - 3 as walls in their own frames,
+    # stacked on a leading axis (``jaxarm.model.self_collision``; None: not checked;
+    # ``Problem.arrays`` sets it).
     link_walls: object = None
 
 

@@ -18,12 +18,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm.checks import collision as collision_lib
 from jaxarm.checks.certified import bounds
 from jaxarm.checks.certified.bits import lowest_set_bit
 from jaxarm.checks.certified.samples import Motion
 from jaxarm.model import path, self_collision
-from jaxarm.model import world as world_lib
 
 MAX_LEVELS = 22  # halvings of a sample window; offsets stay exact integers in float32
 
@@ -102,23 +100,22 @@ def _test_pieces(motion: Motion, pieces: _Piece, tables, step, margin, busy):
                  for j in range(n_joints)]
         swings = bounds.link_swings(lengths, speed, widened_radius)
         motions = bounds.link_motions(lengths, about_centre, widened_radius)
-        for frame in self_collision.frames(lengths, world, about_centre):  # pairs, after
-            swings += bounds.link_swings(frame.lengths, self_collision.in_frame(
-                frame.first, speed), widened_radius)[self_collision.TESTED]
-            motions += bounds.link_motions(frame.lengths, frame.joints,
-                                           widened_radius)[self_collision.TESTED]
-        return swings, motions
+        if world.link_walls is None:
+            return swings, motions, pair_rows
+        # the pairs, after: the frames' rows (``self_collision.over_pairs``, speed first)
+        (pair_swing, pair_motion), _ = self_collision.over_pairs(
+            lengths, world.link_walls, [speed] + about_centre,
+            lambda lengths, wall, joints: list(zip(
+                bounds.link_swings(lengths, joints[0], widened_radius),
+                bounds.link_motions(lengths, joints[1:], widened_radius))))
+        return swings, motions, (pair_swing, pair_motion)
 
-    def stacked(swing, motions):  # the links on a leading axis: (n_rows, n) each
-        return jnp.stack(swing), jax.tree.map(lambda *links: jnp.stack(links), *motions)
-
-    def tight_bounds(swing, motion):  # the links against the world, each pair's its wall
-        walls = [(world, 0, n_joints)]  # (world, first row, last row + 1)
-        for first, wall in enumerate(world.link_walls or ()):
-            walls.append((wall, walls[-1][2], walls[-1][2] + n_joints - first - 2))
-        parts = [_bounds_against(wall, swing[a:b], jax.tree.map(lambda v: v[a:b], motion),
-                                 widened_radius, margin) for wall, a, b in walls]
-        return tuple(jnp.concatenate(values) for values in zip(*parts))
+    def stacked(swing, motions, pairs):  # the links on a leading axis: (n_rows, n) each
+        swing, motion = jnp.stack(swing), jax.tree.map(lambda *links: jnp.stack(links),
+                                                       *motions)
+        if pairs is None:
+            return swing, motion
+        return jax.tree.map(lambda *rows: jnp.concatenate(rows), (swing, motion), pairs)
 
     # Three branches, taken unless no piece is to be tested (``busy`` False: zeros): the
     # pieces' geometry link by link, the links stacked on an array axis, and the bounds on
@@ -129,41 +126,23 @@ def _test_pieces(motion: Motion, pieces: _Piece, tables, step, margin, busy):
     # branch's results are computed once and kept whole (``benchmarks/RESULTS.md``,
     # *Decisions and negative results*, "The piece test in two branches" and "Geometry
     # stacked over the links").
-    n_rows = n_joints + (0 if world.link_walls is None else len(self_collision.pairs(n_joints)))
+    n_pair_rows = 0 if world.link_walls is None else (n_joints - 2) ** 2  # ``over_pairs``
     zero = jnp.zeros(x.shape[:1], dtype)
-    links = jnp.zeros((n_rows,) + x.shape[:1], dtype)
-    swing, motions = jax.lax.cond(
+    links = jnp.zeros((n_joints + n_pair_rows,) + x.shape[:1], dtype)
+    pair_rows = None if world.link_walls is None else (links[n_joints:],
+                                                       bounds.LinkMotion.zeros(links[n_joints:]))
+    swing, motions, pairs = jax.lax.cond(
         busy, geometry,
-        lambda: ([zero] * n_rows, [bounds.LinkMotion.zeros(zero)] * n_rows))
+        lambda: ([zero] * n_joints, [bounds.LinkMotion.zeros(zero)] * n_joints, pair_rows))
     swing, motion = jax.lax.cond(busy, stacked,
                                  lambda *_: (links, bounds.LinkMotion.zeros(links)),
-                                 swing, motions)
-    first, second, clearance = jax.lax.cond(busy, tight_bounds, lambda *_: (links,) * 3, swing,
-                                            motion)
+                                 swing, motions, pairs)
+    first, second, clearance = jax.lax.cond(
+        busy, lambda *rows: bounds.tight_bounds(world, *rows, widened_radius, margin, n_joints),
+        lambda *_: (links,) * 3, swing, motion)
     return _PieceTest(shortfall=jnp.minimum(first, second).max(axis=0),
                       first_order=first.max(axis=0), second_order=second.max(axis=0),
                       nearest=clearance.min(axis=0), radius=radius)
-
-
-def _bounds_against(world, swing, motion: bounds.LinkMotion, radius, margin):
-    """The first-order and second-order shortfalls and the centre's clearance of rows of
-    links (a leading axis: (rows, n) each) against ``world`` over pieces of ``radius``
-    (``_test_pieces``)."""
-    second = 0.5 * radius[None] * radius[None] * motion.acceleration
-
-    def gaps(world):  # the nearest obstacle at the centre and the hull's gap
-        parts = world_lib.separation_parts(*motion.near, *motion.far, world)
-        return (collision_lib.smallest_separation(parts, swing),
-                bounds.motion_gap(world, motion, radius[None], second, parts))
-    if world.near is None:
-        clearance, hull = gaps(world)
-    else:  # each link's listed obstacles, the reach for the others
-        links = jnp.arange(swing.shape[0])[:, None]
-        clearance, hull = collision_lib.near_minimum(
-            world, links, (*motion.near, *motion.far), gaps)
-        reach = jnp.asarray(world.near.reach, swing.dtype)
-        hull = jnp.minimum(hull, reach - radius[None] * motion.top_speed)
-    return swing - (clearance - margin), second - (hull - margin), clearance
 
 
 class Verdict(NamedTuple):

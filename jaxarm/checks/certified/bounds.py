@@ -8,8 +8,9 @@ from the joints' Taylor coefficients about the centre c: what the certified chec
   in a world of circles alone, a third order (``bent_corners``) too.
 
 A shortfall is how far a piece is from proved: <= 0 proves the link keeps the margin there.
-For an arm that checks self-collision, the lists go on with one shortfall per pair of links
-(``jaxarm.model.self_collision``): the later link against the earlier one, in its frame.
+For an arm that checks self-collision, the lists go on with one more shortfall, the largest
+over the pairs of links (``jaxarm.model.self_collision``): each later link against the earlier
+one, in its frame.
 """
 
 from __future__ import annotations
@@ -186,12 +187,15 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
 
 
 def _pair_shortfalls(shortfalls_of, lengths, world, about_centre: list, radius, margin) -> list:
-    """``shortfalls_of``'s bound for every pair of links of an arm that checks
-    self-collision (``self_collision.frames``: each later link against the earlier one as a
-    wall, moving as it moves relative to it); none otherwise."""
-    return [shortfall for frame in self_collision.frames(lengths, world, about_centre)
-            for shortfall in shortfalls_of(frame.lengths, frame.wall, frame.joints, radius,
-                                           margin)[self_collision.TESTED]]
+    """``shortfalls_of``'s bound for the pairs of links of an arm that checks self-collision
+    (``self_collision.over_pairs``: each later link against the earlier one as a wall, moving
+    as it moves relative to it), as one entry: the largest over the pairs; none otherwise."""
+    if world.link_walls is None:
+        return []
+    rows, real = self_collision.over_pairs(
+        lengths, world.link_walls, about_centre,
+        lambda lengths, wall, joints: shortfalls_of(lengths, wall, joints, radius, margin))
+    return [self_collision.only_real(rows, real, -jnp.inf).max(axis=0)]
 
 
 def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> list:
@@ -230,7 +234,7 @@ def sweep_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
       margin: the clearance to keep (cm).
 
     Returns:
-      A list of n_joints arrays of shape (...,).
+      A list of n_joints arrays of shape (...,) (and the pairs', module docstring).
     """
     return (motion_shortfalls(world, link_motions(lengths, about_centre, radius), radius, margin)
             + _pair_shortfalls(sweep_shortfalls, lengths, world, about_centre, radius, margin))
@@ -271,6 +275,49 @@ def motion_gap(world, motion: LinkMotion, radius, second, parts=None):
         world, patch.corners(), circle_distances=(parts.circles, spread), patch=patch,
         polygon_distances=None if parts.polygons is None else (parts.polygons, spread),
         bent=bent)
+
+
+def tight_bounds(world, swing, motion: LinkMotion, radius, margin, n_joints: int):
+    """The bisection's bounds on rows of links (a leading axis: (rows, n) each): the arm's
+    n_joints links against ``world``, then, for an arm that checks self-collision, the pairs'
+    rows (``self_collision.over_pairs``) each against its frame's wall. Returns the first-order
+    and second-order shortfalls and the centre's clearance, (rows, n) each; padding rows
+    -inf, -inf and +inf."""
+    arm = rows_against(world, swing[:n_joints], jax.tree.map(lambda v: v[:n_joints], motion),
+                       radius, margin)
+    if world.link_walls is None:
+        return arm
+
+    def per_frame(rows):  # (n_frames, n_joints - 2, n)
+        return rows[n_joints:].reshape((n_joints - 2, n_joints - 2) + rows.shape[1:])
+    frames = jax.vmap(lambda wall, swing, motion: rows_against(wall, swing, motion, radius,
+                                                               margin))(
+        world.link_walls, per_frame(swing), jax.tree.map(per_frame, motion))
+    real = self_collision.real_rows(n_joints)
+    pairs = [self_collision.only_real(bound.reshape((-1,) + bound.shape[2:]), real, fill)
+             for bound, fill in zip(frames, (-jnp.inf, -jnp.inf, jnp.inf))]
+    return tuple(jnp.concatenate(values) for values in zip(arm, pairs))
+
+
+def rows_against(world, swing, motion: LinkMotion, radius, margin):
+    """The first-order and second-order shortfalls and the centre's clearance of rows of
+    links (a leading axis: (rows, n) each) against ``world`` over pieces of ``radius``
+    (shape (n,)): ``link_swings`` against the nearest obstacle, ``motion_gap``."""
+    second = 0.5 * radius[None] * radius[None] * motion.acceleration
+
+    def gaps(world):  # the nearest obstacle at the centre and the hull's gap
+        parts = world_lib.separation_parts(*motion.near, *motion.far, world)
+        return (collision_lib.smallest_separation(parts, swing),
+                motion_gap(world, motion, radius[None], second, parts))
+    if world.near is None:
+        clearance, hull = gaps(world)
+    else:  # each link's listed obstacles, the reach for the others
+        links = jnp.arange(swing.shape[0])[:, None]
+        clearance, hull = collision_lib.near_minimum(
+            world, links, (*motion.near, *motion.far), gaps)
+        reach = jnp.asarray(world.near.reach, swing.dtype)
+        hull = jnp.minimum(hull, reach - radius[None] * motion.top_speed)
+    return swing - (clearance - margin), second - (hull - margin), clearance
 
 
 def bent_corners(motion: LinkMotion, radius) -> list:
