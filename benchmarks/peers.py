@@ -432,8 +432,9 @@ def main():
     parser.add_argument("--runs", type=int, default=5, help="runs per method (kinematic chain)")
     parser.add_argument("--budget", type=float, default=10.0,
                         help="seconds per run (kinematic chain)")
-    parser.add_argument("--degrees", type=lambda v: [int(d) for d in v.split(",")],
-                        default=[10, 14], help="jaxarm's fixed degrees (kinematic chain)")
+    parser.add_argument("--degrees", type=lambda v: [int(d) for d in v.split(",") if d],
+                        default=[10, 14],
+                        help="jaxarm's fixed degrees (kinematic chain; '' for none)")
     parser.add_argument("--restarts", type=int, default=30)
     parser.add_argument("--scenarios", default="paper-case-1,paper-case-2,narrow-gap,death-trap")
     parser.add_argument("--peers", default=",".join(PEERS),

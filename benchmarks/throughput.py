@@ -13,8 +13,9 @@ beside ``jaxarm.fitness`` alone and the three public functions called one after 
 caller's ``jax.jit``, in turns in the same run.
 
 ``--self-collision`` instead times ``jaxarm.fitness`` on 20,000 random paths with and without
-self-collision (``Arm(self_collision=True)``), sampled and certified, on paper-case-1 (3 links)
-and five-link-detour (5 links), in turns in the same run.
+self-collision (``Arm(self_collision=True)``), sampled and certified, on paper-case-1 (3 links),
+five-link-detour (5 links) and kinematic-chain-10 (10 links): the first call (compiling; the
+persistent cache is off from Python) once each, then warm calls in turns in the same run.
 """
 
 from __future__ import annotations
@@ -164,23 +165,33 @@ def evaluate_section(repeats: int) -> None:
 
 def self_collision_section(repeats: int) -> None:
     """The ``--self-collision`` table (module docstring)."""
-    x = {}
     print(f"jax {jax.__version__} ({jax.default_backend()}), jaxarm.fitness on 20,000 random "
-          f"paths, median of {repeats} calls in turns, warm\n")
-    print("| scene | check | without (s) | with self-collision (s) | with / without |")
-    print("|---|---|---|---|---|")
-    for name, low in (("paper-case-1", 100.0), ("five-link-detour", 100.0)):
+          f"paths: the first call (compiling) once, then the median of {repeats} warm calls in "
+          f"turns\n")
+    jax.block_until_ready(jnp.zeros(1) + 1)  # the backend starts before the first timing
+    print("| scene | check | first call without (s) | first call with (s) | without (s) "
+          "| with self-collision (s) | with / without |")
+    print("|---|---|---|---|---|---|---|")
+    for name in ("paper-case-1", "five-link-detour", "kinematic-chain-10"):
         scene = jaxarm.load_scenario(name)
-        x = jnp.asarray(np.random.default_rng(0).uniform(-low, low, (20_000, scene.n_free)),
+        x = jnp.asarray(np.random.default_rng(0).uniform(-100.0, 100.0, (20_000, scene.n_free)),
                         jnp.float32)
+        scene = scene.replace(arm=jaxarm.Arm(scene.arm.lengths, self_collision=False))
         with_pairs = scene.replace(arm=jaxarm.Arm(scene.arm.lengths, self_collision=True))
         for check in ("sampled", "certified"):
             runs = {label: (lambda p=p.replace(collision=check):
                             jax.block_until_ready(jaxarm.fitness(p, x)))
                     for label, p in (("without", scene), ("with", with_pairs))}
+            first = {}
+            for label, run in runs.items():
+                began = time.perf_counter()
+                run()
+                first[label] = time.perf_counter() - began
             seconds = interleaved_seconds(runs, repeats)
-            print(f"| {name} ({scene.n_joints} links, {len(jaxarm.model.self_collision.pairs(scene.n_joints))} "
-                  f"pairs) | {check} | {seconds['without']:.4f} | {seconds['with']:.4f} | "
+            n_pairs = len(jaxarm.model.self_collision.pairs(scene.n_joints))
+            print(f"| {name} ({scene.n_joints} links, {n_pairs} pair{'s' * (n_pairs != 1)}) "
+                  f"| {check} | {first['without']:.1f} | {first['with']:.1f} "
+                  f"| {seconds['without']:.4f} | {seconds['with']:.4f} | "
                   f"{seconds['with'] / seconds['without']:.2f} |", flush=True)
 
 
