@@ -237,8 +237,8 @@ class Problem:
                 self._check_self_collision(which, theta, lengths)
 
     def _check_self_collision(self, which: str, theta, lengths) -> None:
-        """Links that are not neighbours neither cross nor come closer than the margin (in
-        each frame of ``self_collision``: the later links against the earlier one)."""
+        """Links that are not neighbours neither cross nor come closer than the margin
+        (``self_collision.posture_pair_separations``)."""
         separation = self_collision.posture_pair_separations(lengths, theta)
         if separation.size == 0:  # one or two links: no pair to meet
             return

@@ -102,9 +102,8 @@ def pair_separations(links: list, xp=jnp) -> list:
       xp: ``jax.numpy``, or ``numpy`` on the host.
 
     Returns:
-      A list of n_pairs arrays of shape (...,). Pair by pair: on an array axis, XLA's CPU
-      backend ran the sampled check several times slower, and these few operations per pair
-      compile fast.
+      A list of n_pairs arrays of shape (...,): pair by pair, elementwise over the batch, as
+      ``link_endpoints`` gives the links (a few operations per pair).
     """
     return [segment_separations(links[i], links[j], xp) for i, j in pairs(len(links))]
 
