@@ -76,10 +76,11 @@ def link_distances(lengths, world, theta):
 
     def one(angles):
         angles = list(angles)
-        separation = obstacles(link_endpoints(lengths, angles))
+        links = link_endpoints(lengths, angles)
+        separation = obstacles(links)
         nearest = separation.min(axis=1)  # inf: only padding slots
         slot = jnp.where(jnp.isinf(nearest), -1, jnp.argmin(separation, axis=1))
-        between = _link_separations(lengths, world, angles)  # (n_joints, n_joints)
+        between = _link_separations(links, world)  # (n_joints, n_joints)
         closer = between.min(axis=1) < nearest
         return (jnp.minimum(nearest, between.min(axis=1)),
                 jnp.where(closer, -1, slot).astype(jnp.int32),
@@ -88,16 +89,16 @@ def link_distances(lengths, world, theta):
     return jax.lax.map(one, theta, batch_size=POSTURES_AT_ONCE)
 
 
-def _link_separations(lengths, world, angles: list):
-    """Exact separations between every two links that are not neighbours, for an arm that
-    checks self-collision (``jaxarm.model.self_collision``), shape (n_joints, n_joints),
-    symmetric, +inf elsewhere (and everywhere for one that does not)."""
-    n_joints = len(angles)
-    between = jnp.full((n_joints, n_joints), jnp.inf, angles[0].dtype)
+def _link_separations(links: list, world):
+    """Exact separations between every two links (``link_endpoints``' tuples) that are not
+    neighbours, for an arm that checks self-collision (``jaxarm.model.self_collision``), shape
+    (n_joints, n_joints), symmetric, +inf elsewhere (and everywhere for one that does not)."""
+    n_joints = len(links)
+    between = jnp.full((n_joints, n_joints), jnp.inf, links[0][0].dtype)
     if world.link_walls is None:
         return between
     first, other = np.array(self_collision.pairs(n_joints)).T
-    separations = jnp.stack(self_collision.pair_separations(link_endpoints(lengths, angles)))
+    separations = jnp.stack(self_collision.pair_separations(links))
     return between.at[first, other].set(separations).at[other, first].set(separations)
 
 

@@ -126,7 +126,7 @@ def _test_pieces(motion: Motion, pieces: _Piece, tables, step, margin, busy):
     # branch's results are computed once and kept whole (``benchmarks/RESULTS.md``,
     # *Decisions and negative results*, "The piece test in two branches" and "Geometry
     # stacked over the links").
-    n_pair_rows = 0 if world.link_walls is None else (n_joints - 2) ** 2  # ``over_pairs``
+    n_pair_rows = 0 if world.link_walls is None else len(self_collision.real_rows(n_joints))
     zero = jnp.zeros(x.shape[:1], dtype)
     links = jnp.zeros((n_joints + n_pair_rows,) + x.shape[:1], dtype)
     pair_rows = None if world.link_walls is None else (links[n_joints:],
