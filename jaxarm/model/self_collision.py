@@ -7,8 +7,8 @@ joint angle is 0 and whose other joints are the arm's. Each link i = 0 .. n - 3 
 *frame*: a chain (its lengths and joint values) against a world of one segment, its links 2,
 3, ... tested as any link is tested against obstacles. So every bound of both checks holds for
 the pairs as it holds for obstacles, with the motion of the later link relative to the earlier
-one, which is slower than either's own. The frames are checked on an array axis
-(``over_pairs``), so a program's size does not grow with the number of pairs.
+one, which is slower than either's own. The certified check's bounds take the frames on an
+array axis (``over_pairs``): traced once for every pair, not once per pair.
 """
 
 from __future__ import annotations
@@ -36,10 +36,10 @@ def link_walls(lengths) -> WorldArrays:
 def over_pairs(lengths, walls: WorldArrays, per_joint: list, per_frame):
     """``per_frame`` run on every frame at once: one row per (frame, link) of the frames' chains.
 
-    The frames are padded to the arm's length and taken on an array axis (``jax.vmap``), so a
-    compiled program's size does not grow with the pairs: frame i's chain is links i, i + 1,
-    ... (its first joint 0), then links of the arm's last length straight on, whose rows are
-    padding.
+    The frames are padded to the arm's length and taken on an array axis (``jax.vmap``), so
+    ``per_frame`` is traced once, whatever the number of pairs: frame i's chain is links i,
+    i + 1, ... (its first joint 0), then links of the arm's last length straight on, whose rows
+    are padding.
 
     Args:
       walls: ``link_walls``, the frames' walls (``WorldArrays.link_walls``).
