@@ -51,12 +51,15 @@ def test_small_worlds_have_no_tables_and_large_ones_do(rng):
     assert tables.circle_lists.shape[:2] == (ARM.n_joints, nearby.DIRECTION_BINS)
 
 
-@pytest.mark.parametrize("kind", ["circles", "triangles"])
-def test_every_obstacle_within_reach_of_a_link_is_listed(rng, kind):
+@pytest.mark.parametrize("kind, collision", [("circles", "certified"),
+                                             ("triangles", "certified"),
+                                             ("triangles", "sampled")])
+def test_every_obstacle_within_reach_of_a_link_is_listed(rng, kind, collision):
     """Random segments of each link's length in the arm's reach, in every direction (some on
     the bins' edges): every obstacle closer than the tables' reach (shapely) is in the list
-    ``near_cells`` picks, and the list's rows hold that obstacle's numbers."""
-    problem = corridor_problem(rng, 300, kind)
+    ``near_cells`` picks, and the list's rows hold that obstacle's numbers (in the polygon
+    blocks of each check's size)."""
+    problem = corridor_problem(rng, 300, kind, collision=collision)
     world, tables = problem.arrays.world, problem.arrays.world.near
     reach = float(tables.reach)
     circles, polygons = shapely_obstacles(problem.world)
@@ -71,6 +74,7 @@ def test_every_obstacle_within_reach_of_a_link_is_listed(rng, kind):
         own = [getattr(world, name) for name in POLYGON_FIELDS]
     lists = lists.reshape(-1, lists.shape[-1])
     block = numbers[0].shape[1]
+    assert block == (nearby.BLOCK if kind == "circles" else nearby.POLYGON_BLOCK[collision])
     edges = np.arange(2 * nearby.DIRECTION_BINS) * np.pi / nearby.DIRECTION_BINS
     for link, length in enumerate(ARM.lengths):
         mid = rng.uniform(-1, 1, (400, 2)) * (ARM.reach - length / 2) / np.sqrt(2)

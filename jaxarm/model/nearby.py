@@ -32,9 +32,12 @@ from jaxarm.model.world import CIRCLE_FIELDS, POLYGON_FIELDS, WorldArrays
 
 # Slots tested per step of a scan over obstacles, circles and polygons: written out within
 # a block (the kernels' fast form), scanned across blocks. A list is padded to whole blocks;
-# a polygon slot has more numbers, and its smaller block pads less.
+# a polygon slot has more numbers, and its smaller block pads less: 4 for the sampled check
+# and 8 for the certified one, which ran faster at those sizes (``benchmarks/RESULTS.md``,
+# *Decisions and negative results*, "A block's numbers read whole, in blocks of 4 polygons
+# under the sampled check").
 BLOCK = 16
-POLYGON_BLOCK = 8
+POLYGON_BLOCK = {"sampled": 4, "certified": 8}
 # Worlds of more slot work than this get the broad phase (``NearTables``); smaller ones keep
 # every slot written out in one program, which runs faster there (``benchmarks/RESULTS.md``,
 # "Scenes at scale": 64 circles or 16 triangles written out, the last sizes before that
@@ -99,17 +102,20 @@ def default_reach(lengths, margin: float, certified: bool) -> float:
     return float(margin) + float(np.sum(lengths)) / (16.0 if certified else 32.0)
 
 
-def build(world: WorldArrays, lengths, reach: float) -> NearTables:
+def build(world: WorldArrays, lengths, reach: float,
+          collision: str = "certified") -> NearTables:
     """The near tables of a packed world for an arm with link ``lengths`` (cm).
 
     Args:
       world: the packed world (float64 NumPy arrays).
       lengths: link lengths, shape (n_links,).
       reach: cm, > 0: the distance every slot left out of a list keeps from the link.
+      collision: the check the tables are built for ("sampled" or "certified"): it picks
+        the polygon block (``POLYGON_BLOCK``); either check reads either's tables.
 
     Returns:
       ``NearTables``; each list is padded with empty slots (far away and masked) to whole
-      blocks of its kind (``BLOCK`` circles, ``POLYGON_BLOCK`` polygons).
+      blocks of its kind (``BLOCK`` circles, ``POLYGON_BLOCK[collision]`` polygons).
     """
     lengths = np.asarray(lengths, dtype=np.float64)
     arm_reach = float(np.sum(lengths))
@@ -131,13 +137,14 @@ def build(world: WorldArrays, lengths, reach: float) -> NearTables:
         for kind, (low, high) in boxes.items():
             lists[kind].append(_near_lists(centres, low, high, length, width))
     circle_lists = _padded(lists["circles"], len(boxes["circles"][0]), BLOCK)
-    polygon_lists = _padded(lists["polygons"], len(boxes["polygons"][0]), POLYGON_BLOCK)
+    polygon_block = POLYGON_BLOCK[collision]
+    polygon_lists = _padded(lists["polygons"], len(boxes["polygons"][0]), polygon_block)
     return NearTables(
         origin=np.array([-arm_reach, -arm_reach]), inverse_cell=np.asarray(1.0 / cell),
         reach=np.asarray(float(reach)), circle_lists=circle_lists,
         polygon_lists=polygon_lists,
         **_listed_numbers(world, "circle", circle_lists, BLOCK),
-        **_listed_numbers(world, "polygon", polygon_lists, POLYGON_BLOCK))
+        **_listed_numbers(world, "polygon", polygon_lists, polygon_block))
 
 
 def _circle_boxes(world: WorldArrays):
@@ -287,11 +294,17 @@ def block_world(numbers: tuple, names: tuple, index) -> WorldArrays:
     or ``.polygons``) at rows ``index`` (of the links' shape (...)), each field of shape
     (block, *slot data, ...) -- the slot axis first, the links' shape last, so that the
     kernels of ``jaxarm.model.world`` broadcast each slot's numbers against its own link --
-    and no slots of the other kind."""
+    and no slots of the other kind.
+
+    The block's numbers are read whole before the kernels use them (an optimisation barrier):
+    left to XLA, the reads fused into the kernels, which ran slower on polygon scenes
+    (``benchmarks/RESULTS.md``, *Decisions and negative results*, "A block's numbers read
+    whole, in blocks of 4 polygons under the sampled check")."""
     batch_ndim = jnp.ndim(index)
-    fields = {name: jnp.moveaxis(jnp.asarray(values).at[index].get(mode="promise_in_bounds"),
-                                 tuple(range(batch_ndim)), tuple(range(-batch_ndim, 0)))
-              for name, values in zip(names, numbers)}
+    fields = jax.lax.optimization_barrier(
+        {name: jnp.moveaxis(jnp.asarray(values).at[index].get(mode="promise_in_bounds"),
+                            tuple(range(batch_ndim)), tuple(range(-batch_ndim, 0)))
+         for name, values in zip(names, numbers)})
     for name in CIRCLE_FIELDS + POLYGON_FIELDS:
         if name not in fields:
             shape = {"circles": (0, 3), "vertices": (0, 1, 2), "normals": (0, 1, 2),

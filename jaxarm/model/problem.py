@@ -321,8 +321,10 @@ class Problem:
         if not nearby.uses_broad_phase(self.capacities):
             return world
         lengths = np.asarray(self.arm.lengths)
+        certified = self.collision == "certified"
         return world._replace(near=nearby.build(
-            world, lengths, nearby.default_reach(lengths, self.margin, self.collision == "certified")))
+            world, lengths, nearby.default_reach(lengths, self.margin, certified),
+            self.collision))
 
     def replace(self, **changes) -> "Problem":
         """A copy with some fields changed (and validated again)."""
