@@ -10,7 +10,9 @@ Each row runs in a fresh process with no persistent cache (``JAXARM_CACHE_DIR=of
 each check: ``first`` is the first ``jaxarm.fitness`` call on 20,000 random paths (the
 problem's init range, seed 0), compiling included; ``warm`` the median of 3 more (paths/s);
 ``memory`` the process's peak resident set (which includes JAX itself). With ``--search``,
-also ``solve(problem, "A:feasibility", n_restarts=50)``: its first call and one warm call.
+also ``solve(problem, "A:feasibility", n_restarts=50)``: its first call and one warm call,
+how many of the restarts it ran escaped (it stops at a stage's first chunk with a certified
+path), and whether its path is certified.
 ``--before`` turns the broad phase off (every slot written out in one program, as before it
 existed), with ``--timeout`` seconds per row.
 
@@ -75,7 +77,9 @@ def measure(kind: str, count: int, check: str, search: bool, before: bool) -> di
         began = time.perf_counter()
         result = jaxarm.solve(problem, "A:feasibility", n_restarts=50, seed=0)
         row["search_warm"] = time.perf_counter() - began
-        row["escapes"] = int(np.sum(np.asarray(result.outcome.escaped)))
+        row["escapes"] = int(np.sum(result.restarts.feasible))
+        row["restarts"] = len(result.restarts.feasible)  # fewer once a stage certifies
+        row["certified"] = bool(result.certified)
     row["memory_gb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
     row["obstacles"] = problem.world.n_obstacles
     return row
@@ -121,7 +125,7 @@ def main() -> None:
     scenes = ([(kind, n) for kind in ("circles", "triangles") for n in counts[kind]]
               + [("map", 0)] * args.map)
     header = ("| scene | obstacles | check | paths/s (warm) | first call (s) | peak memory (GB) |"
-              + (" search first / warm (s) | escapes /50 |" if args.search else ""))
+              + (" search first / warm (s) | escapes / restarts run | certified |" if args.search else ""))
     print(header)
     print("|" + "---|" * (header.count("|") - 1))
     for kind, count in scenes:
@@ -130,13 +134,13 @@ def main() -> None:
             name = "map" if kind == "map" else f"{count} {kind}"
             if row is None:
                 print(f"| {name} | | {check} | | over {args.timeout:.0f} s or failed | | "
-                      + ("| |" if args.search else ""), flush=True)
+                      + ("| | |" if args.search else ""), flush=True)
                 continue
             line = (f"| {name} | {row['obstacles']} | {check} | {row['paths_per_s'] / 1e3:,.1f} k "
                     f"| {row['first']:.1f} | {row['memory_gb']:.2f} |")
             if args.search:
                 line += (f" {row['search_first']:.1f} / {row['search_warm']:.2f} | "
-                         f"{row['escapes']} |")
+                         f"{row['escapes']} / {row['restarts']} | {row['certified']} |")
             print(line, flush=True)
 
 

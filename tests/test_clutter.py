@@ -61,3 +61,17 @@ def test_the_default_search_finds_a_certified_path_among_hundreds(count, kind, s
     result = jaxarm.solve(problem, n_restarts=4)
     assert result.certified
     assert dense_clearance(problem, np.asarray(result.best_x)[None], 20_001, cutoff=5.0)[0] >= 0
+
+
+def test_the_scene_scale_benchmark_times_a_search(monkeypatch):
+    """``benchmarks/scene_scale.py --search``'s row (a few paths, the smallest scene): the
+    search's columns say how many of the restarts run escaped and whether its path is
+    certified."""
+    from benchmark_modules import load
+
+    scene_scale = load("scene_scale")
+    monkeypatch.setattr(scene_scale, "PATHS", 64)
+    row = scene_scale.measure("circles", 4, "sampled", search=True, before=False)
+    assert row["obstacles"] == 4 and row["paths_per_s"] > 0
+    assert 1 <= row["restarts"] <= 50 and 1 <= row["escapes"] <= row["restarts"]
+    assert row["certified"] in (True, False) and row["search_warm"] > 0

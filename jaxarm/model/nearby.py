@@ -296,10 +296,10 @@ def block_world(numbers: tuple, names: tuple, index) -> WorldArrays:
     kernels of ``jaxarm.model.world`` broadcast each slot's numbers against its own link --
     and no slots of the other kind.
 
-    The block's numbers are read whole before the kernels use them (an optimisation barrier):
-    left to XLA, the reads fused into the kernels, which ran slower on polygon scenes
-    (``benchmarks/RESULTS.md``, *Decisions and negative results*, "A block's numbers read
-    whole, in blocks of 4 polygons under the sampled check")."""
+    The block's numbers pass an optimisation barrier before the kernels use them, so that
+    XLA reads them whole rather than fusing the reads into the kernels: measured faster on
+    polygon scenes (``benchmarks/RESULTS.md``, *Decisions and negative results*, "A block's
+    numbers read whole, in blocks of 4 polygons under the sampled check")."""
     batch_ndim = jnp.ndim(index)
     fields = jax.lax.optimization_barrier(
         {name: jnp.moveaxis(jnp.asarray(values).at[index].get(mode="promise_in_bounds"),
