@@ -125,7 +125,8 @@ def main() -> None:
     scenes = ([(kind, n) for kind in ("circles", "triangles") for n in counts[kind]]
               + [("map", 0)] * args.map)
     header = ("| scene | obstacles | check | paths/s (warm) | first call (s) | peak memory (GB) |"
-              + (" search first / warm (s) | escapes / restarts run | certified |" if args.search else ""))
+              + (" search first / warm (s) | escapes / restarts run | certified |"
+                 if args.search else ""))
     print(header)
     print("|" + "---|" * (header.count("|") - 1))
     for kind, count in scenes:

@@ -74,4 +74,4 @@ def test_the_scene_scale_benchmark_times_a_search(monkeypatch):
     row = scene_scale.measure("circles", 4, "sampled", search=True, before=False)
     assert row["obstacles"] == 4 and row["paths_per_s"] > 0
     assert 1 <= row["restarts"] <= 50 and 1 <= row["escapes"] <= row["restarts"]
-    assert row["certified"] in (True, False) and row["search_warm"] > 0
+    assert isinstance(row["certified"], bool) and row["search_warm"] > 0  # JSON for the parent
