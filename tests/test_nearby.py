@@ -124,11 +124,15 @@ def test_the_certified_check_gives_the_same_verdicts_with_and_without_tables(rng
     assert np.asarray(near.pieces).sum() > 0  # the bisection ran
 
 
-@pytest.mark.parametrize("kind", ["circles", "triangles"])
-def test_certified_free_among_hundreds_of_obstacles_is_free_for_the_dense_oracle(rng, kind):
+@pytest.mark.parametrize("kind, collision", [("circles", "certified"),
+                                             ("triangles", "certified"),
+                                             ("triangles", "sampled")])
+def test_certified_free_among_hundreds_of_obstacles_is_free_for_the_dense_oracle(rng, kind,
+                                                                                collision):
     """No path certified free comes closer than the margin at any of 20,001 times (shapely);
-    paths the oracle finds clear by 2 tolerances are certified."""
-    problem = corridor_problem(rng, 300, kind, margin=0.25)
+    paths the oracle finds clear by 2 tolerances are certified. ``certify`` of a sampled
+    problem reads the sampled check's tables (a shorter reach, polygon blocks of 4)."""
+    problem = corridor_problem(rng, 300, kind, collision=collision, margin=0.25)
     x = rng.uniform(-60, 60, (300, problem.n_free))
     certificate = jaxarm.certify(problem, x)
     free = np.asarray(certificate.free)
