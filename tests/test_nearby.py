@@ -51,6 +51,30 @@ def test_small_worlds_have_no_tables_and_large_ones_do(rng):
     assert tables.circle_lists.shape[:2] == (ARM.n_joints, nearby.DIRECTION_BINS)
 
 
+@pytest.mark.parametrize("count, largest_kept", [(nearby.BROAD_PHASE_WORK + 1, True),
+                                                 (1000, False)])
+def test_the_certified_tables_take_the_largest_reach_whose_lists_are_shortest(
+        rng, count, largest_kept):
+    """Among the certified check's candidate reaches, the tables keep the largest whose lists
+    are no longer (in whole blocks) than the smallest reach's: just past the threshold every
+    candidate lists as few blocks, and the largest is kept; among 1,000 circles the largest
+    lists more, and a shorter one is kept. The chosen tables are those built for that reach
+    alone."""
+    problem = corridor_problem(rng, count, "circles", margin=0.5)
+    packed, tables = problem.world.pack(problem.capacities), problem.arrays.world.near
+    candidates = nearby.reach_candidates(ARM.lengths, 0.5, certified=True)
+    assert len(candidates) > 1
+    blocks = {reach: nearby.build(packed, ARM.lengths, reach).circle_lists.shape[-1]
+              for reach in candidates}
+    chosen = float(tables.reach)
+    assert chosen in candidates and (chosen == max(candidates)) == largest_kept
+    assert blocks[chosen] == blocks[min(candidates)]
+    assert all(blocks[reach] > blocks[chosen] for reach in candidates if reach > chosen)
+    alone = nearby.build(packed, ARM.lengths, chosen)
+    np.testing.assert_array_equal(alone.circle_lists, tables.circle_lists)
+    np.testing.assert_array_equal(alone.circle_rows, tables.circle_rows)
+
+
 @pytest.mark.parametrize("kind, collision", [("circles", "certified"),
                                              ("triangles", "certified"),
                                              ("triangles", "sampled")])

@@ -92,24 +92,34 @@ def uses_broad_phase(capacities: tuple[int, int, int]) -> bool:
     return slot_work(capacities) > BROAD_PHASE_WORK
 
 
-def default_reach(lengths, margin: float, certified: bool) -> float:
-    """The tables' guarantee (cm): the margin plus a share of the arm's reach, a sixteenth
-    for the certified check (a piece of motion whose links move less than the excess over the
-    margin is proved with the listed obstacles alone; a longer one is split), a
-    thirty-second for the sampled one (whose postures need the margin alone; the excess keeps
-    refine's barrier, which looks a few tenths of a cm past the margin, on exact distances).
-    A larger reach lists more obstacles per cell."""
-    return float(margin) + float(np.sum(lengths)) / (16.0 if certified else 32.0)
+def reach_candidates(lengths, margin: float, certified: bool) -> tuple[float, ...]:
+    """The tables' guarantee (cm) as candidates ``build`` chooses among: the margin plus a
+    share of the arm's reach.
+
+    The certified check: a sixteenth, a thirty-second or a sixty-fourth. A piece of motion
+    whose links move less than the excess over the margin is proved with the listed obstacles
+    alone, a longer one is split: a larger reach splits less, a shorter one lists fewer
+    obstacles per cell where they are dense, so ``build`` takes the largest whose lists are
+    no longer, in whole blocks, than the shortest's (``benchmarks/RESULTS.md``, "Scenes at
+    scale": the certified search among 1,000 circles, and on the map, whose lists the
+    shorter reach does not shorten). The sampled check: a thirty-second (its postures need
+    the margin alone; the excess keeps refine's barrier, which looks a few tenths of a cm past
+    the margin, on exact distances).
+    """
+    arm_reach = float(np.sum(lengths))
+    shares = (64.0, 32.0, 16.0) if certified else (32.0,)
+    return tuple(float(margin) + arm_reach / share for share in shares)
 
 
-def build(world: WorldArrays, lengths, reach: float,
-          collision: str = "certified") -> NearTables:
+def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> NearTables:
     """The near tables of a packed world for an arm with link ``lengths`` (cm).
 
     Args:
       world: the packed world (float64 NumPy arrays).
       lengths: link lengths, shape (n_links,).
-      reach: cm, > 0: the distance every slot left out of a list keeps from the link.
+      reach: cm, > 0: the distance every slot left out of a list keeps from the link; or
+        several such (``reach_candidates``), of which the tables take the largest whose lists
+        are no longer, in whole blocks of each kind, than those of the smallest.
       collision: the check the tables are built for ("sampled" or "certified"): it picks
         the polygon block (``POLYGON_BLOCK``); either check reads either's tables.
 
@@ -118,6 +128,7 @@ def build(world: WorldArrays, lengths, reach: float,
       blocks of its kind (``BLOCK`` circles, ``POLYGON_BLOCK[collision]`` polygons).
     """
     lengths = np.asarray(lengths, dtype=np.float64)
+    reaches = sorted(float(value) for value in np.atleast_1d(reach))
     arm_reach = float(np.sum(lengths))
     cell = 2.0 * arm_reach / GRID_CELLS
     centres = -arm_reach + cell * (np.arange(GRID_CELLS) + 0.5)  # the same along x and y
@@ -127,24 +138,37 @@ def build(world: WorldArrays, lengths, reach: float,
     half_bin = 0.5 * np.pi / DIRECTION_BINS + 1e-3
     slack = 1e-4 * arm_reach
     boxes = {"circles": _circle_boxes(world), "polygons": _polygon_boxes(world)}
-    lists = {kind: [] for kind in boxes}
+    blocks = {"circles": BLOCK, "polygons": POLYGON_BLOCK[collision]}
+    pairs = {kind: [] for kind in boxes}
     for length in lengths:
         # Every point of a link whose midpoint is in the cell and whose direction is in the
         # bin lies within this of the segment through the cell's centre along the bin's
         # middle direction (a turn by at most half_bin moves a point at t from the
-        # midpoint by 2 |t| sin(half_bin / 2)).
-        width = half_diagonal + length * np.sin(0.5 * half_bin) + reach + slack
+        # midpoint by 2 |t| sin(half_bin / 2)), plus the reach.
+        spread = half_diagonal + length * np.sin(0.5 * half_bin)
+        widest = spread + reaches[-1] + slack
         for kind, (low, high) in boxes.items():
-            lists[kind].append(_near_lists(centres, low, high, length, width))
-    circle_lists = _padded(lists["circles"], len(boxes["circles"][0]), BLOCK)
-    polygon_block = POLYGON_BLOCK[collision]
-    polygon_lists = _padded(lists["polygons"], len(boxes["polygons"][0]), polygon_block)
+            pairs[kind].append((length, spread, _near_pairs(centres, low, high, length, widest)))
+
+    def lists_at(reach: float) -> dict:
+        return {kind: _padded([_within(per_bin, length, spread + reach + slack)
+                               for length, spread, per_bin in per_link],
+                              len(boxes[kind][0]), blocks[kind])
+                for kind, per_link in pairs.items()}
+
+    def list_blocks(lists: dict) -> tuple:
+        return tuple(lists[kind].shape[-1] // blocks[kind] for kind in boxes)
+
+    candidates = {value: lists_at(value) for value in reaches}
+    shortest = list_blocks(candidates[reaches[0]])
+    reach = max(value for value, lists in candidates.items() if list_blocks(lists) == shortest)
+    lists = candidates[reach]
     return NearTables(
         origin=np.array([-arm_reach, -arm_reach]), inverse_cell=np.asarray(1.0 / cell),
-        reach=np.asarray(float(reach)), circle_lists=circle_lists,
-        polygon_lists=polygon_lists,
-        **_listed_numbers(world, "circle", circle_lists, BLOCK),
-        **_listed_numbers(world, "polygon", polygon_lists, polygon_block))
+        reach=np.asarray(reach), circle_lists=lists["circles"],
+        polygon_lists=lists["polygons"],
+        **_listed_numbers(world, "circle", lists["circles"], blocks["circles"]),
+        **_listed_numbers(world, "polygon", lists["polygons"], blocks["polygons"]))
 
 
 def _circle_boxes(world: WorldArrays):
@@ -169,27 +193,32 @@ def _only_valid(low, high, valid):
     return low, high
 
 
-def _near_lists(centres, low, high, length, width) -> list:
-    """Per direction bin, the (cell, slot) pairs of the slots whose box comes within
-    ``width`` of the segment of ``length`` through the cell's centre along the bin's middle
-    direction, by the largest gap of their projections on four axes (x, y and the segment's
-    direction and normal: each a lower bound on the distance); a list of ``DIRECTION_BINS``
-    pairs of int arrays (cell = row * n_cells + column), ascending."""
+def _near_pairs(centres, low, high, length, width) -> list:
+    """Per direction bin, the (cell, slot) pairs of the slots whose box comes within ``width``
+    of the segment of ``length`` through the cell's centre along the bin's middle direction,
+    by the largest gap of their projections on four axes (x, y and the segment's direction and
+    normal: each a lower bound on the distance) and by the box's distance from the centre
+    (within length / 2 + width): a list of ``DIRECTION_BINS`` tuples of arrays (cell = row *
+    n_cells + column, slot, the largest gap (cm), the squared distance from the centre (cm^2)),
+    so that the lists of a smaller width are these pairs filtered."""
     n_cells = len(centres)
     if not len(low):
-        return [(np.zeros(0, np.int64), np.zeros(0, np.int64))] * DIRECTION_BINS
+        return [(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+                ] * DIRECTION_BINS
     # Candidates: within length / 2 + width of the centre, whatever the direction.
     gap_x = np.maximum(np.maximum(low[None, :, 0] - centres[:, None],
                                   centres[:, None] - high[None, :, 0]), 0.0)  # (n_cells, n)
     gap_y = np.maximum(np.maximum(low[None, :, 1] - centres[:, None],
                                   centres[:, None] - high[None, :, 1]), 0.0)
     radius = 0.5 * length + width
-    cells, slots = [], []
+    cells, slots, centre_squared = [], [], []
     for row in range(n_cells):
-        column, slot = np.nonzero(gap_y[row][None, :] ** 2 + gap_x ** 2 <= radius * radius)
+        squared = gap_y[row][None, :] ** 2 + gap_x ** 2
+        column, slot = np.nonzero(squared <= radius * radius)
         cells.append(row * n_cells + column)
         slots.append(slot)
-    cells, slots = np.concatenate(cells), np.concatenate(slots)
+        centre_squared.append(squared[column, slot])
+    cells, slots, centre_squared = map(np.concatenate, (cells, slots, centre_squared))
     # Each pair's box relative to its cell's centre, and the box's gaps along x and y.
     centre = np.stack([centres[cells % n_cells], centres[cells // n_cells]], axis=-1)
     low, high = low[slots] - centre, high[slots] - centre  # (pairs, 2)
@@ -198,12 +227,23 @@ def _near_lists(centres, low, high, length, width) -> list:
     per_bin = []
     for direction in (np.arange(DIRECTION_BINS) + 0.5) * (np.pi / DIRECTION_BINS):
         cos, sin = np.cos(direction), np.sin(direction)
-        gaps = [along_x - 0.5 * length * abs(cos), along_y - 0.5 * length * abs(sin),
-                _projection_gap(low, high, cos, sin) - 0.5 * length,
-                _projection_gap(low, high, -sin, cos)]
-        near = np.max(gaps, axis=0) <= width
-        per_bin.append((cells[near], slots[near]))
+        gaps = np.max([along_x - 0.5 * length * abs(cos), along_y - 0.5 * length * abs(sin),
+                       _projection_gap(low, high, cos, sin) - 0.5 * length,
+                       _projection_gap(low, high, -sin, cos)], axis=0)
+        near = gaps <= width
+        per_bin.append((cells[near], slots[near], gaps[near], centre_squared[near]))
     return per_bin
+
+
+def _within(per_bin: list, length: float, width: float) -> list:
+    """One link's ``_near_pairs`` (found within a larger width) within ``width``: per bin,
+    (cells, slots)."""
+    radius = 0.5 * length + width
+    kept = []
+    for cells, slots, gaps, centre_squared in per_bin:
+        near = (gaps <= width) & (centre_squared <= radius * radius)
+        kept.append((cells[near], slots[near]))
+    return kept
 
 
 def _projection_gap(low, high, axis_x, axis_y):
@@ -216,7 +256,7 @@ def _projection_gap(low, high, axis_x, axis_y):
 
 
 def _padded(per_link: list, n_slots: int, block: int) -> np.ndarray:
-    """Lists (``_near_lists`` per link) as one int32 array (n_links, DIRECTION_BINS,
+    """Lists (per link, per bin, (cells, slots) pairs, ``_near_pairs``) as one int32 array (n_links, DIRECTION_BINS,
     n_cells, n_cells, k), k a multiple of ``block`` (at least one block), padded with
     ``n_slots`` (an empty slot)."""
     n_lists = GRID_CELLS * GRID_CELLS

@@ -323,7 +323,7 @@ class Problem:
         lengths = np.asarray(self.arm.lengths)
         certified = self.collision == "certified"
         return world._replace(near=nearby.build(
-            world, lengths, nearby.default_reach(lengths, self.margin, certified),
+            world, lengths, nearby.reach_candidates(lengths, self.margin, certified),
             self.collision))
 
     def replace(self, **changes) -> "Problem":
