@@ -256,9 +256,9 @@ def _projection_gap(low, high, axis_x, axis_y):
 
 
 def _padded(per_link: list, n_slots: int, block: int) -> np.ndarray:
-    """Lists (per link, per bin, (cells, slots) pairs, ``_near_pairs``) as one int32 array (n_links, DIRECTION_BINS,
-    n_cells, n_cells, k), k a multiple of ``block`` (at least one block), padded with
-    ``n_slots`` (an empty slot)."""
+    """Lists (per link, per bin, the (cells, slots) of ``_within``) as one int32 array
+    (n_links, DIRECTION_BINS, n_cells, n_cells, k), k a multiple of ``block`` (at least one
+    block), each list's slots ascending, padded with ``n_slots`` (an empty slot)."""
     n_lists = GRID_CELLS * GRID_CELLS
     counts = [np.bincount(cells, minlength=n_lists) for per_bin in per_link
               for cells, _ in per_bin]
