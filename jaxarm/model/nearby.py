@@ -150,19 +150,19 @@ def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> N
         for kind, (low, high) in boxes.items():
             pairs[kind].append((length, spread, _near_pairs(centres, low, high, length, widest)))
 
-    def lists_at(reach: float) -> dict:
-        return {kind: _padded([_within(per_bin, length, spread + reach + slack)
-                               for length, spread, per_bin in per_link],
-                              len(boxes[kind][0]), blocks[kind])
+    def pairs_at(reach: float) -> dict:
+        return {kind: [_within(per_bin, length, spread + reach + slack)
+                       for length, spread, per_bin in per_link]
                 for kind, per_link in pairs.items()}
 
-    def list_blocks(lists: dict) -> tuple:
-        return tuple(lists[kind].shape[-1] // blocks[kind] for kind in boxes)
+    def list_blocks(kept: dict) -> tuple:
+        return tuple(_list_length(kept[kind], blocks[kind]) for kind in boxes)
 
-    candidates = {value: lists_at(value) for value in reaches}
+    candidates = {value: pairs_at(value) for value in reaches}
     shortest = list_blocks(candidates[reaches[0]])
-    reach = max(value for value, lists in candidates.items() if list_blocks(lists) == shortest)
-    lists = candidates[reach]
+    reach = max(value for value, kept in candidates.items() if list_blocks(kept) == shortest)
+    lists = {kind: _padded(kept, len(boxes[kind][0]), blocks[kind])
+             for kind, kept in candidates[reach].items()}
     return NearTables(
         origin=np.array([-arm_reach, -arm_reach]), inverse_cell=np.asarray(1.0 / cell),
         reach=np.asarray(reach), circle_lists=lists["circles"],
@@ -255,15 +255,20 @@ def _projection_gap(low, high, axis_x, axis_y):
     return np.maximum(x_low * axis_x + y_low * axis_y, -(x_high * axis_x + y_high * axis_y))
 
 
+def _list_length(per_link: list, block: int) -> int:
+    """The slots of the longest list (per link, per bin, the (cells, slots) of ``_within``),
+    rounded up to whole blocks (at least one)."""
+    longest = max((int(np.bincount(cells).max(initial=0)) for per_bin in per_link
+                   for cells, _ in per_bin), default=0)
+    return block * max(1, -(-longest // block))
+
+
 def _padded(per_link: list, n_slots: int, block: int) -> np.ndarray:
     """Lists (per link, per bin, the (cells, slots) of ``_within``) as one int32 array
-    (n_links, DIRECTION_BINS, n_cells, n_cells, k), k a multiple of ``block`` (at least one
-    block), each list's slots ascending, padded with ``n_slots`` (an empty slot)."""
+    (n_links, DIRECTION_BINS, n_cells, n_cells, k), k = ``_list_length``, each list's slots
+    ascending, padded with ``n_slots`` (an empty slot)."""
     n_lists = GRID_CELLS * GRID_CELLS
-    counts = [np.bincount(cells, minlength=n_lists) for per_bin in per_link
-              for cells, _ in per_bin]
-    longest = max((int(count.max()) for count in counts), default=0)
-    k = block * max(1, -(-longest // block))
+    k = _list_length(per_link, block)
     table = np.full((len(per_link), DIRECTION_BINS, n_lists, k), n_slots, np.int32)
     for link, per_bin in enumerate(per_link):
         for direction, (cells, slots) in enumerate(per_bin):
