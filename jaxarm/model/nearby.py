@@ -100,9 +100,10 @@ def reach_candidates(lengths, margin: float, certified: bool) -> tuple[float, ..
     whose links move less than the excess over the margin is proved with the listed obstacles
     alone, a longer one is split: a larger reach splits less, a shorter one lists fewer
     obstacles per cell where they are dense, so ``build`` takes the largest whose lists are
-    no longer, in whole blocks, than the shortest's (``benchmarks/RESULTS.md``, "Scenes at
-    scale": the certified search among 1,000 circles, and on the map, whose lists the
-    shorter reach does not shorten). The sampled check: a thirty-second (its postures need
+    no longer, in whole blocks, than the shortest's (``benchmarks/RESULTS.md``, *Decisions
+    and negative results*, "The certified tables' reach follows the lists": the certified
+    search among 1,000 circles, and on the map, whose lists the shorter reach does not
+    shorten). The sampled check: a thirty-second (its postures need
     the margin alone; the excess keeps refine's barrier, which looks a few tenths of a cm past
     the margin, on exact distances).
     """
