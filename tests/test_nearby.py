@@ -11,7 +11,6 @@ import jaxarm
 from jaxarm.checks import certified
 from jaxarm.checks.evaluate import evaluate
 from jaxarm.model import nearby
-from jaxarm.model.world import CIRCLE_FIELDS, POLYGON_FIELDS
 from jaxarm.testing import dense_clearance, shapely_obstacles
 
 ARM = jaxarm.Arm((30.0, 30.0, 20.0))
@@ -51,28 +50,46 @@ def test_small_worlds_have_no_tables_and_large_ones_do(rng):
     assert tables.circle_lists.shape[:2] == (ARM.n_joints, nearby.DIRECTION_BINS)
 
 
-@pytest.mark.parametrize("count, largest_kept", [(nearby.BROAD_PHASE_WORK + 1, True),
-                                                 (1000, False)])
-def test_the_certified_tables_take_the_largest_reach_whose_lists_are_shortest(
-        rng, count, largest_kept):
-    """Among the certified check's candidate reaches, the tables keep the largest whose lists
-    are no longer (in whole blocks) than the smallest reach's: just past the threshold every
-    candidate lists as few blocks, and the largest is kept; among 1,000 circles the largest
-    lists more, and a shorter one is kept. The chosen tables are those built for that reach
+@pytest.mark.parametrize("count, collision, largest_kept", [
+    (nearby.BROAD_PHASE_WORK + 1, "certified", True), (1000, "certified", False),
+    (nearby.BROAD_PHASE_WORK + 1, "sampled", True), (1500, "sampled", False)])
+def test_the_tables_take_the_largest_reach_whose_lists_are_shortest(
+        rng, count, collision, largest_kept):
+    """Among a check's candidate reaches, the tables keep the largest whose lists are no
+    longer (in whole blocks) than the smallest reach's: just past the threshold every
+    candidate lists as few blocks, and the largest is kept; among 1,000 circles (1,500 for the
+    sampled check's two candidates) the largest lists more, and a shorter one is kept. The chosen tables are those built for that reach
     alone."""
-    problem = corridor_problem(rng, count, "circles", margin=0.5)
+    problem = corridor_problem(rng, count, "circles", collision=collision, margin=0.5)
     packed, tables = problem.world.pack(problem.capacities), problem.arrays.world.near
-    candidates = nearby.reach_candidates(ARM.lengths, 0.5, certified=True)
+    candidates = nearby.reach_candidates(ARM.lengths, 0.5, certified=collision == "certified")
     assert len(candidates) > 1
-    blocks = {reach: nearby.build(packed, ARM.lengths, reach).circle_lists.shape[-1]
+    blocks = {reach: nearby.build(packed, ARM.lengths, reach, collision).circle_lists.shape[-1]
               for reach in candidates}
     chosen = float(tables.reach)
     assert chosen in candidates and (chosen == max(candidates)) == largest_kept
     assert blocks[chosen] == blocks[min(candidates)]
     assert all(blocks[reach] > blocks[chosen] for reach in candidates if reach > chosen)
-    alone = nearby.build(packed, ARM.lengths, chosen)
+    alone = nearby.build(packed, ARM.lengths, chosen, collision)
     np.testing.assert_array_equal(alone.circle_lists, tables.circle_lists)
     np.testing.assert_array_equal(alone.circle_rows, tables.circle_rows)
+
+
+def test_a_circle_lists_padding_is_beyond_the_reach_of_every_link(rng):
+    """Circle blocks carry no valid flags (``nearby.LISTED_FIELDS``): a list's padding is a
+    circle whose separation from every segment within the arm's reach (where every link is)
+    exceeds the tables' reach by more than the arm's length, so a depth or a clearance bound
+    taken from it is that of no obstacle. Checked on the padded slots of every row, with
+    shapely."""
+    tables = corridor_problem(rng, 300, "circles").arrays.world.near
+    (numbers,) = tables.circles
+    slots = tables.circle_lists.reshape(-1, tables.circle_lists.shape[-1])
+    assert (slots == 300).any()  # some padding
+    padding = np.unique(numbers[numbers[..., 2] == 0.0], axis=0)
+    assert len(padding) == 1
+    (x, y, radius), reach = padding[0].astype(np.float64), float(tables.reach)
+    arm_disc = shapely.Point(0.0, 0.0).buffer(ARM.reach, 256)
+    assert shapely.distance(arm_disc, shapely.Point(x, y)) - radius > reach + ARM.reach
 
 
 @pytest.mark.parametrize("kind, collision", [("circles", "certified"),
@@ -91,11 +108,11 @@ def test_every_obstacle_within_reach_of_a_link_is_listed(rng, kind, collision):
     if kind == "circles":
         n_slots, lists, rows, numbers = (len(circles), tables.circle_lists, tables.circle_rows,
                                          tables.circles)
-        own = [getattr(world, name) for name in CIRCLE_FIELDS]
+        own = [getattr(world, name) for name in nearby.LISTED_FIELDS["circle"]]
     else:
         n_slots, lists, rows, numbers = (len(polygons), tables.polygon_lists,
                                          tables.polygon_rows, tables.polygons)
-        own = [getattr(world, name) for name in POLYGON_FIELDS]
+        own = [getattr(world, name) for name in nearby.LISTED_FIELDS["polygon"]]
     lists = lists.reshape(-1, lists.shape[-1])
     block = numbers[0].shape[1]
     assert block == (nearby.BLOCK if kind == "circles" else nearby.POLYGON_BLOCK[collision])

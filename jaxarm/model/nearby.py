@@ -30,6 +30,14 @@ import numpy as np
 
 from jaxarm.model.world import CIRCLE_FIELDS, POLYGON_FIELDS, WorldArrays
 
+# The fields a block of listed slots carries, per kind: a circle's numbers alone (no valid
+# flag: a list's padding is a circle far from the arm, never within the tables' reach, so
+# the kernels need not mask it, and a row of circles is a quarter fewer numbers to read;
+# ``benchmarks/RESULTS.md``, *Decisions and negative results*, "Circle blocks without their
+# valid flags"), a polygon's every field (its padding is masked: its edges' numbers are not
+# those of a real polygon).
+LISTED_FIELDS = {"circle": ("circles",), "polygon": POLYGON_FIELDS}
+
 # Slots tested per step of a scan over obstacles, circles and polygons: written out within
 # a block (the kernels' fast form), scanned across blocks. A list is padded to whole blocks;
 # a polygon slot has more numbers, and its smaller block pads less: 4 for the sampled check
@@ -55,8 +63,8 @@ class NearTables(NamedTuple):
     """The obstacles near a link whose midpoint is in a grid cell and whose direction is in
     a bin, as data (a pytree of arrays; ``build`` makes it).
 
-    ``circles`` and ``polygons`` hold the listed slots' own numbers: each of the world's fields
-    of that kind (``CIRCLE_FIELDS``, ``POLYGON_FIELDS``), of shape (n_rows, block, *slot data),
+    ``circles`` and ``polygons`` hold the listed slots' own numbers: each of the fields
+    ``LISTED_FIELDS`` names for that kind, of shape (n_rows, block, *slot data),
     one row per distinct block of slots; ``circle_rows`` and ``polygon_rows``, of shape
     (n_blocks * M,), M = n_links * DIRECTION_BINS * n_cells**2 lists, say which row holds
     block b of list c (``near_cells``) at b * M + c. A block of a link's list is then one
@@ -73,11 +81,11 @@ class NearTables(NamedTuple):
     circle_lists: np.ndarray
     polygon_lists: np.ndarray
     circle_rows: np.ndarray  # int32: the row of each block of each list (see above)
-    # CIRCLE_FIELDS' listed numbers (see above), in the type JAX computes in (float32 unless
-    # x64 is on); () without circle slots.
+    # LISTED_FIELDS' listed numbers (see above), in the type JAX computes in (float32 unless
+    # x64 is on); () without slots of the kind.
     circles: tuple
     polygon_rows: np.ndarray
-    polygons: tuple  # POLYGON_FIELDS' listed numbers; () without polygon slots
+    polygons: tuple
 
 
 def slot_work(capacities: tuple[int, int, int]) -> int:
@@ -103,12 +111,13 @@ def reach_candidates(lengths, margin: float, certified: bool) -> tuple[float, ..
     no longer, in whole blocks, than the shortest's (``benchmarks/RESULTS.md``, *Decisions
     and negative results*, "The certified tables' reach follows the lists": the certified
     search among 1,000 circles, and on the map, whose lists the shorter reach does not
-    shorten). The sampled check: a thirty-second (its postures need
-    the margin alone; the excess keeps refine's barrier, which looks a few tenths of a cm past
-    the margin, on exact distances).
+    shorten). The sampled check: a thirty-second or a sixty-fourth, chosen the same way (its
+    postures need the margin alone, and shorter lists are fewer blocks to read: "The sampled
+    tables' reach follows the lists"; the excess keeps refine's barrier, which looks a few
+    tenths of a cm past the margin, on exact distances).
     """
     arm_reach = float(np.sum(lengths))
-    shares = (64.0, 32.0, 16.0) if certified else (32.0,)
+    shares = (64.0, 32.0, 16.0) if certified else (64.0, 32.0)
     return tuple(float(margin) + arm_reach / share for share in shares)
 
 
@@ -164,12 +173,16 @@ def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> N
     reach = max(value for value, kept in candidates.items() if list_blocks(kept) == shortest)
     lists = {kind: _padded(kept, len(boxes[kind][0]), blocks[kind])
              for kind, kept in candidates[reach].items()}
+    # The padding circle: farther from every point within the arm's reach than the reach
+    # plus the arm's length, so that no bound the checks take from it comes near the reach.
+    far = 1e4 + 2.0 * (arm_reach + reach)
+    empty = dict(_MASKED, circles=np.array([far, far, 0.0]))
     return NearTables(
         origin=np.array([-arm_reach, -arm_reach]), inverse_cell=np.asarray(1.0 / cell),
         reach=np.asarray(reach), circle_lists=lists["circles"],
         polygon_lists=lists["polygons"],
-        **_listed_numbers(world, "circle", lists["circles"], blocks["circles"]),
-        **_listed_numbers(world, "polygon", lists["polygons"], blocks["polygons"]))
+        **_listed_numbers(world, "circle", lists["circles"], blocks["circles"], empty),
+        **_listed_numbers(world, "polygon", lists["polygons"], blocks["polygons"], empty))
 
 
 def _circle_boxes(world: WorldArrays):
@@ -280,16 +293,19 @@ def _padded(per_link: list, n_slots: int, block: int) -> np.ndarray:
     return table.reshape(len(per_link), DIRECTION_BINS, GRID_CELLS, GRID_CELLS, k)
 
 
-# The numbers of an empty slot, far from any arm and masked (the lists' padding).
-_EMPTY = {"circles": 1e4, "circle_valid": False, "vertices": 1e4, "normals": 0.0,
-          "extent_low": 0.0, "extent_high": 0.0, "edge_valid": False, "polygon_valid": False}
+# The numbers of a masked empty slot, far from any arm (a polygon list's padding; a circle
+# list's is a far circle, ``build``), and of an absent field (``block_world``).
+_MASKED = {"circles": 1e4, "circle_valid": False, "vertices": 1e4, "normals": 0.0,
+           "extent_low": 0.0, "extent_high": 0.0, "edge_valid": False, "polygon_valid": False}
 
 
-def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int) -> dict:
+def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int,
+                    empty: dict) -> dict:
     """``NearTables``' rows of one kind ("circle" or "polygon"): ``{kind}_rows`` and the
-    numbers of the distinct blocks (``{kind}s``, field by field; () for a world without
-    slots of this kind)."""
-    names = CIRCLE_FIELDS if kind == "circle" else POLYGON_FIELDS
+    numbers of the distinct blocks (``{kind}s``, the fields ``LISTED_FIELDS`` names; () for
+    a world without slots of this kind), the lists' padding given its numbers by ``empty``
+    (per field: one slot's numbers, broadcast)."""
+    names = LISTED_FIELDS[kind]
     n_blocks = lists.shape[-1] // block
     blocks = np.moveaxis(lists.reshape(-1, n_blocks, block), 1, 0).reshape(-1, block)
     if not getattr(world, names[0]).shape[0]:
@@ -303,8 +319,8 @@ def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int
     for name in names:
         values = np.asarray(getattr(world, name))
         values = values.astype(jax.dtypes.canonicalize_dtype(values.dtype))  # float64 -> 32
-        values = np.concatenate([values, np.full((1,) + values.shape[1:], _EMPTY[name],
-                                                 values.dtype)])
+        padding = np.broadcast_to(np.asarray(empty[name], values.dtype), values.shape[1:])
+        values = np.concatenate([values, padding[None]])
         numbers.append(values[distinct])  # (n_rows, block, *data)
     return {f"{kind}_rows": rows.reshape(-1).astype(np.int32), f"{kind}s": tuple(numbers)}
 
@@ -337,10 +353,10 @@ def near_cells(tables: NearTables, link, sx, sy, ex, ey):
 
 def block_world(numbers: tuple, names: tuple, index) -> WorldArrays:
     """The world of one block of listed slots of one kind: ``numbers`` (``NearTables.circles``
-    or ``.polygons``) at rows ``index`` (of the links' shape (...)), each field of shape
-    (block, *slot data, ...) -- the slot axis first, the links' shape last, so that the
-    kernels of ``jaxarm.model.world`` broadcast each slot's numbers against its own link --
-    and no slots of the other kind.
+    or ``.polygons``, the fields ``names``) at rows ``index`` (of the links' shape (...)), each
+    field of shape (block, *slot data, ...) -- the slot axis first, the links' shape last, so
+    that the kernels of ``jaxarm.model.world`` broadcast each slot's numbers against its own
+    link -- every circle valid (``LISTED_FIELDS``), and no slots of the other kind.
 
     The block's numbers pass an optimisation barrier before the kernels use them, so that
     XLA reads them whole rather than fusing the reads into the kernels: measured faster on
@@ -351,12 +367,14 @@ def block_world(numbers: tuple, names: tuple, index) -> WorldArrays:
         {name: jnp.moveaxis(jnp.asarray(values).at[index].get(mode="promise_in_bounds"),
                             tuple(range(batch_ndim)), tuple(range(-batch_ndim, 0)))
          for name, values in zip(names, numbers)})
+    if "circles" in fields:
+        fields["circle_valid"] = jnp.ones(fields["circles"].shape[:1], bool)
     for name in CIRCLE_FIELDS + POLYGON_FIELDS:
         if name not in fields:
             shape = {"circles": (0, 3), "vertices": (0, 1, 2), "normals": (0, 1, 2),
                      "extent_low": (0, 1), "extent_high": (0, 1), "edge_valid": (0, 1)}
             fields[name] = jnp.zeros(shape.get(name, (0,)),
-                                     bool if isinstance(_EMPTY[name], bool) else None)
+                                     bool if isinstance(_MASKED[name], bool) else None)
     return WorldArrays(**fields)
 
 
@@ -379,8 +397,8 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: Callable,
     n_lists = int(np.prod(tables.circle_lists.shape[:-1]))
     result = None
     for names, numbers, lists, rows in (
-            (CIRCLE_FIELDS, tables.circles, tables.circle_lists, tables.circle_rows),
-            (POLYGON_FIELDS, tables.polygons, tables.polygon_lists, tables.polygon_rows)):
+            (LISTED_FIELDS["circle"], tables.circles, tables.circle_lists, tables.circle_rows),
+            (LISTED_FIELDS["polygon"], tables.polygons, tables.polygon_lists, tables.polygon_rows)):
         if not numbers:
             continue
 
