@@ -58,8 +58,8 @@ def test_the_tables_take_the_largest_reach_whose_lists_are_shortest(
     """Among a check's candidate reaches, the tables keep the largest whose lists are no
     longer (in whole blocks) than the smallest reach's: just past the threshold every
     candidate lists as few blocks, and the largest is kept; among 1,000 circles (1,500 for the
-    sampled check's two candidates) the largest lists more, and a shorter one is kept. The chosen tables are those built for that reach
-    alone."""
+    sampled check's two candidates) the largest lists more, and a shorter one is kept. The
+    chosen tables are those built for that reach alone."""
     problem = corridor_problem(rng, count, "circles", collision=collision, margin=0.5)
     packed, tables = problem.world.pack(problem.capacities), problem.arrays.world.near
     candidates = nearby.reach_candidates(ARM.lengths, 0.5, certified=collision == "certified")

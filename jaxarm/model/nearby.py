@@ -398,7 +398,8 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: Callable,
     result = None
     for names, numbers, lists, rows in (
             (LISTED_FIELDS["circle"], tables.circles, tables.circle_lists, tables.circle_rows),
-            (LISTED_FIELDS["polygon"], tables.polygons, tables.polygon_lists, tables.polygon_rows)):
+            (LISTED_FIELDS["polygon"], tables.polygons, tables.polygon_lists,
+             tables.polygon_rows)):
         if not numbers:
             continue
 
