@@ -3,6 +3,7 @@ slot, no false "free" against the dense shapely oracle among hundreds of obstacl
 program that does not grow with the obstacles."""
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 import shapely
@@ -135,6 +136,68 @@ def test_every_obstacle_within_reach_of_a_link_is_listed(rng, kind, collision):
                 for listed_field, own_field in zip(numbers, own):  # every field of the slot
                     np.testing.assert_array_equal(listed_field[row, position % block],
                                                   own_field[index].astype(listed_field.dtype))
+
+
+@pytest.mark.parametrize("kind, collision", [("circles", "certified"), ("triangles", "sampled")])
+def test_a_lists_blocks_past_its_count_are_padding(rng, kind, collision):
+    """``circle_blocks`` / ``polygon_blocks``: a list's listed slots fill its first blocks, and
+    every block past them is padding; lists differ in length."""
+    problem = corridor_problem(rng, 300, kind, collision=collision)
+    world, tables = problem.arrays.world, problem.arrays.world.near
+    if kind == "circles":
+        lists, used, n_slots = tables.circle_lists, tables.circle_blocks, len(world.circles)
+    else:
+        lists, used, n_slots = tables.polygon_lists, tables.polygon_blocks, len(world.vertices)
+    block = nearby.BLOCK if kind == "circles" else nearby.POLYGON_BLOCK[collision]
+    lists = lists.reshape(-1, lists.shape[-1] // block, block)
+    holds_a_slot = (lists < n_slots).any(axis=-1)  # (M, blocks)
+    np.testing.assert_array_equal(holds_a_slot,
+                                  np.arange(lists.shape[1])[None] < used[:, None])
+    assert used.max() == lists.shape[1] and np.mean(used < used.max()) > 0.5
+
+
+def test_a_block_few_links_reach_is_read_by_those_alone(rng, monkeypatch):
+    """``over_blocks`` with chunks of 16 links: a block that at most ``SPARSE_SHARE`` of the
+    links' lists reach is read by those links alone, any other by every link; with the
+    default chunk, this batch is too small to gather links, and every link reads every block
+    some list reaches."""
+    problem = corridor_problem(rng, 300, "circles")
+    tables = problem.arrays.world.near
+    link = rng.integers(0, ARM.n_joints, 1000)
+    ends = rng.uniform(-40, 40, (4, 1000)).astype(np.float32)
+    cells = np.asarray(nearby.near_cells(tables, link, *ends))
+    used = tables.circle_blocks[cells]
+    n_blocks = tables.circle_lists.shape[-1] // nearby.BLOCK
+    share = np.array([np.mean(used > b) for b in range(n_blocks)])
+    assert np.any((share > 0) & (share <= nearby.SPARSE_SHARE)) and share[0] > 0.5
+
+    def reads():  # how many blocks each link read
+        return np.asarray(jax.jit(lambda cells: nearby.over_blocks(
+            tables, cells, lambda block, _: jnp.ones(block.circles.shape[-1]), "add"))(cells))
+    np.testing.assert_array_equal(reads(), np.sum(share > 0))
+    monkeypatch.setattr(nearby, "CHUNK", 16)
+    alone = share <= nearby.SPARSE_SHARE
+    expected = np.sum(np.where(alone[None], used[:, None] > np.arange(n_blocks), share > 0), 1)
+    np.testing.assert_array_equal(reads(), expected)
+
+
+@pytest.mark.parametrize("kind, collision", [("triangles", "sampled"), ("circles", "certified")])
+def test_links_that_read_a_block_alone_get_the_bits_of_every_link_reading_it(
+        rng, monkeypatch, kind, collision):
+    """Chunks of 16 links (the blocks few lists reach read by those links alone) give every
+    field of ``evaluate`` bit for bit as this batch gives with the default chunk (every link
+    reading every block)."""
+    problem = corridor_problem(rng, 300, kind, collision=collision, margin=0.25)
+    x = rng.uniform(-60, 60, (200, problem.n_free)).astype(np.float32)
+
+    def run():  # traced anew: the chunk is read when tracing
+        return jax.jit(lambda arrays, x: evaluate(problem.spec, arrays, x))(problem.arrays, x)
+    every = run()
+    monkeypatch.setattr(nearby, "CHUNK", 16)
+    alone = run()
+    for field in every._fields:
+        np.testing.assert_array_equal(getattr(alone, field), getattr(every, field))
+    assert 0.1 < np.mean(np.asarray(every.fitness) > 0) < 0.9
 
 
 @pytest.mark.parametrize("margin", [0.0, 1.0])

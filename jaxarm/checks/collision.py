@@ -70,8 +70,8 @@ def posture_margin_depth(lengths, world, theta: list, margin=0.0, *, exact: bool
         for index, link in enumerate(links):
             total = total + nearby.over_blocks(
                 world.near, nearby.near_cells(world.near, index, *link),
-                lambda block, link=link: _add_link_margin_depth(
-                    jnp.zeros_like(total), link, block, margin, exact=exact), jnp.add, 0.0)
+                lambda block, link: _add_link_margin_depth(
+                    jnp.zeros_like(link[0]), link, block, margin, exact=exact), "add", link)
         return total
     if exact and link_edge_pairs(len(links), world) > UNROLLED_LINK_EDGES:
         stacked = tuple(jnp.stack(coordinate) for coordinate in zip(*links))
@@ -133,17 +133,18 @@ def link_clearance_bounds(world, links: list, *, exact: bool) -> list:
                          jnp.full_like(link[0], jnp.inf))
     if world.near is None:
         return [clearance(link, world) for link in links]
-    return [near_minimum(world, index, link, functools.partial(clearance, link))
+    return [near_minimum(world, index, link, lambda block, link: clearance(link, block), link)
             for index, link in enumerate(links)]
 
 
-def near_minimum(world, index, link, value):
-    """The smallest ``value(block)`` (a pytree of arrays of the link's shape) over blocks of the
-    slots listed near link ``index`` (an int, or ints broadcasting with the link's
-    coordinates) at end points ``link``, each array at most the tables' reach: a lower
-    bound on that value over every obstacle when it is a lower bound on a distance."""
+def near_minimum(world, index, link, value, per_link):
+    """The smallest ``value(block, per_link)`` (a pytree of arrays of the link's shape) over
+    blocks of the slots listed near link ``index`` (an int, or ints broadcasting with the
+    link's coordinates) at end points ``link``, each array at most the tables' reach: a lower
+    bound on that value over every obstacle when it is a lower bound on a distance.
+    ``per_link``: the links' own data ``value`` reads (``nearby.over_blocks``)."""
     found = nearby.over_blocks(world.near, nearby.near_cells(world.near, index, *link), value,
-                               functools.partial(jax.tree.map, jnp.minimum), jnp.inf)
+                               "min", per_link)
     reach = jnp.asarray(world.near.reach, link[0].dtype)
     return jax.tree.map(lambda a: jnp.minimum(a, reach), found)
 

@@ -17,11 +17,14 @@ Obstacles are data here: the lists are cut into blocks, each distinct block stor
 one contiguous row of its slots' numbers (a row gathered whole costs far less than its slots
 gathered one by one through an index list), and tested block by block in a ``lax.scan``
 (``over_blocks``), so the compiled program does not grow with the number of obstacles, and a
-batch's working set holds one block at a time.
+batch's working set holds one block at a time. Lists differ in length, and a link pays for
+its own: a block no link's list reaches is skipped, and one that few lists reach is read by
+those links alone.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Callable, NamedTuple
 
 import jax
@@ -56,6 +59,12 @@ GRID_CELLS = 48
 # Bins of a link's direction (modulo pi: a segment is the same whichever way it points): a
 # list need only hold what lies near the links of one direction, a strip rather than a disc.
 DIRECTION_BINS = 16
+# ``over_blocks``: a block that at most this share of a batch's links read is read by those
+# alone, gathered in chunks of ``CHUNK`` links (finding and gathering them costs about as
+# much per link as reading a block of circles: ``benchmarks/RESULTS.md``, *Decisions and
+# negative results*, "Each link reads its own list").
+SPARSE_SHARE = 0.5
+CHUNK = 2048
 
 
 
@@ -81,10 +90,14 @@ class NearTables(NamedTuple):
     circle_lists: np.ndarray
     polygon_lists: np.ndarray
     circle_rows: np.ndarray  # int32: the row of each block of each list (see above)
+    # int32, shape (M,): how many blocks of list c hold a listed slot (the rest are padding,
+    # which ``over_blocks`` skips).
+    circle_blocks: np.ndarray
     # LISTED_FIELDS' listed numbers (see above), in the type JAX computes in (float32 unless
     # x64 is on); () without slots of the kind.
     circles: tuple
     polygon_rows: np.ndarray
+    polygon_blocks: np.ndarray
     polygons: tuple
 
 
@@ -181,6 +194,9 @@ def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> N
         origin=np.array([-arm_reach, -arm_reach]), inverse_cell=np.asarray(1.0 / cell),
         reach=np.asarray(reach), circle_lists=lists["circles"],
         polygon_lists=lists["polygons"],
+        circle_blocks=_used_blocks(lists["circles"], len(boxes["circles"][0]), blocks["circles"]),
+        polygon_blocks=_used_blocks(lists["polygons"], len(boxes["polygons"][0]),
+                                    blocks["polygons"]),
         **_listed_numbers(world, "circle", lists["circles"], blocks["circles"], empty),
         **_listed_numbers(world, "polygon", lists["polygons"], blocks["polygons"], empty))
 
@@ -293,6 +309,12 @@ def _padded(per_link: list, n_slots: int, block: int) -> np.ndarray:
     return table.reshape(len(per_link), DIRECTION_BINS, GRID_CELLS, GRID_CELLS, k)
 
 
+def _used_blocks(lists: np.ndarray, n_slots: int, block: int) -> np.ndarray:
+    """How many blocks of each list hold a listed slot: int32, shape (M,)."""
+    listed = (lists < n_slots).sum(axis=-1).reshape(-1)
+    return (-(-listed // block)).astype(np.int32)
+
+
 # The numbers of a masked empty slot, far from any arm (a polygon list's padding; a circle
 # list's is a far circle, ``build``), and of an absent field (``block_world``).
 _MASKED = {"circles": 1e4, "circle_valid": False, "vertices": 1e4, "normals": 0.0,
@@ -378,39 +400,102 @@ def block_world(numbers: tuple, names: tuple, index) -> WorldArrays:
     return WorldArrays(**fields)
 
 
-def over_blocks(tables: NearTables, cells, value: Callable, combine: Callable,
-                identity: float):
-    """``combine`` of ``value(block)`` over the blocks of slots listed in ``cells``
-    (``near_cells``), in a scan whose body is the program's one copy of ``value``.
+def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_link=()):
+    """The sum or minimum of ``value(block, per_link)`` over the blocks of slots listed in
+    ``cells`` (``near_cells``), each link paying for its own list's blocks alone.
+
+    Block by block (a ``lax.scan``; the body is the program's one copy of ``value``): a block
+    no link's list reaches is skipped; one that at most ``SPARSE_SHARE`` of the links read
+    is read by those alone, gathered in chunks of ``CHUNK`` links (a ``lax.while_loop`` over
+    as many chunks as they fill; in batches of at least ``2 * CHUNK`` links); any other is
+    read by every link, its padding included (which adds 0 to a sum and stays above the
+    tables' reach in a minimum).
 
     Args:
       tables: the world's ``NearTables``.
       cells: ``near_cells``, of the links' shape (...).
-      value: block world (``block_world``: a block of slots of one kind) -> a pytree of arrays
-        of the links' shape (...).
-      combine: (pytree, pytree) -> pytree, elementwise, associative (min, max, add).
-      identity: ``combine``'s identity (0 for add, inf for min), the value of no blocks.
+      value: (block world (``block_world``: a block of slots of one kind), ``per_link`` at
+        some links, each of shape (n,)) -> a pytree of arrays of shape (n,).
+      combine: "add" (identity 0) or "min" (identity +inf).
+      per_link: a pytree of arrays broadcasting to the links' shape: each link's own data
+        that ``value`` reads.
 
     Returns:
-      The combined pytree.
+      The combined pytree, each array of the links' shape.
     """
+    shape = cells.shape
+    n_links = math.prod(shape)
     n_lists = int(np.prod(tables.circle_lists.shape[:-1]))
+    cells = cells.reshape(n_links)
+    per_link = jax.tree.map(lambda a: jnp.broadcast_to(a, shape).reshape(n_links), per_link)
+    combined = {"add": jnp.add, "min": jnp.minimum}[combine]
+    gathers = n_links >= 2 * CHUNK
     result = None
-    for names, numbers, lists, rows in (
-            (LISTED_FIELDS["circle"], tables.circles, tables.circle_lists, tables.circle_rows),
-            (LISTED_FIELDS["polygon"], tables.polygons, tables.polygon_lists,
-             tables.polygon_rows)):
+    for names, numbers, rows, used in (
+            (LISTED_FIELDS["circle"], tables.circles, tables.circle_rows,
+             tables.circle_blocks),
+            (LISTED_FIELDS["polygon"], tables.polygons, tables.polygon_rows,
+             tables.polygon_blocks)):
         if not numbers:
             continue
 
-        def one_block(block, names=names, numbers=numbers, rows=rows):
-            row = jnp.asarray(rows).at[block * n_lists + cells].get(mode="promise_in_bounds")
-            return value(block_world(numbers, names, row))
+        def one_block(block, at=None, names=names, numbers=numbers, rows=rows):
+            """``value`` of block ``block`` at links ``at`` (None: every link)."""
+            links = (cells, per_link) if at is None else jax.tree.map(
+                lambda a: a.at[at].get(mode="promise_in_bounds"), (cells, per_link))
+            row = jnp.asarray(rows).at[block * n_lists + links[0]].get(mode="promise_in_bounds")
+            return value(block_world(numbers, names, row), links[1])
 
         if result is None:
-            result = jax.tree.map(lambda shape: jnp.full(shape.shape, identity, shape.dtype),
+            identity = {"add": 0.0, "min": jnp.inf}[combine]
+            result = jax.tree.map(lambda like: jnp.full(like.shape, identity, like.dtype),
                                   jax.eval_shape(one_block, jnp.int32(0)))
-        blocks = jnp.arange(lists.shape[-1] // numbers[0].shape[1], dtype=jnp.int32)
-        result, _ = jax.lax.scan(lambda carry, block: (combine(carry, one_block(block)), None),
-                                 result, blocks)
-    return result
+        used = jnp.asarray(used).at[cells].get(mode="promise_in_bounds")
+
+        def block_step(result, block, one_block=one_block, used=used):
+            reads = used > block
+            count = jnp.sum(reads, dtype=jnp.int32)
+
+            def every_link(result):
+                return jax.tree.map(combined, result, one_block(block))
+
+            def its_readers(result):
+                order = _gathered_first(reads, CHUNK)
+
+                def one_chunk(state):
+                    first, result = state
+                    at = jax.lax.dynamic_slice(order, (first,), (CHUNK,))
+                    values = one_block(block, jnp.minimum(at, n_links - 1))
+                    return first + CHUNK, jax.tree.map(
+                        lambda r, v: _combined_at(r, at, v, combine), result, values)
+
+                return jax.lax.while_loop(lambda state: state[0] < count, one_chunk,
+                                          (jnp.int32(0), result))[1]
+
+            branch = jnp.where(count > 0, 1, 0)
+            if gathers:
+                branch = jnp.where((count > 0) & (count <= SPARSE_SHARE * n_links), 2, branch)
+            return jax.lax.switch(branch, [lambda result: result, every_link, its_readers][
+                :3 if gathers else 2], result), None
+
+        n_blocks = rows.shape[0] // n_lists
+        result, _ = jax.lax.scan(block_step, result, jnp.arange(n_blocks, dtype=jnp.int32))
+    return jax.tree.map(lambda a: a.reshape(shape), result)
+
+
+def _gathered_first(flags, chunk: int):
+    """The indices of the true ``flags`` (shape (n,)), ascending, then n (no index) up to a
+    whole number of chunks: int32, shape (ceil(n / chunk) * chunk,)."""
+    n = flags.shape[0]
+    padded = -(-n // chunk) * chunk
+    slot = jnp.where(flags, jnp.cumsum(flags, dtype=jnp.int32) - 1, padded)
+    return jnp.full(padded, n, jnp.int32).at[slot].set(jnp.arange(n, dtype=jnp.int32),
+                                                       mode="drop")
+
+
+def _combined_at(result, at, values, combine: str):
+    """``result`` with ``values`` added (or taken where smaller) at indices ``at``; indices
+    past the end are dropped."""
+    if combine == "add":
+        return result.at[at].add(values, mode="drop")
+    return result.at[at].min(values, mode="drop")

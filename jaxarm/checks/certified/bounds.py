@@ -167,7 +167,8 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
         sweep = world_lib.Sweep(*(radius * v for v in motion.near_velocity + motion.far_velocity))
         spread = radius * motion.top_speed
 
-        def gaps(world, link=link, sweep=sweep, spread=spread):
+        def gaps(world, per_link):
+            link, sweep, spread = per_link
             circles, swept_circles = world_lib.circle_sweep_gaps(*link, sweep, world)
             polygons = world_lib.polygon_slots(*link, world, exact=False)
             none = jnp.full_like(link[0], jnp.inf)  # a world without obstacles
@@ -175,9 +176,10 @@ def drift_shortfalls(lengths, world, about_centre: list, radius, margin=0.0) -> 
                     functools.reduce(jnp.minimum,
                                      swept_circles + [gap - spread for gap in polygons], none))
         if world.near is None:
-            clearance, swept = gaps(world)
+            clearance, swept = gaps(world, (link, sweep, spread))
         else:  # the listed obstacles, and the reach for the others (``near_minimum``)
-            clearance, swept = collision_lib.near_minimum(world, k, link, gaps)
+            clearance, swept = collision_lib.near_minimum(world, k, link, gaps,
+                                                          (link, sweep, spread))
             swept = jnp.minimum(swept, jnp.asarray(world.near.reach, swept.dtype) - spread)
         shortfalls.append(jnp.minimum(
             swings[k] - (clearance - margin),
@@ -305,16 +307,17 @@ def rows_against(world, swing, motion: LinkMotion, radius, margin):
     (shape (n,)): ``link_swings`` against the nearest obstacle, ``motion_gap``."""
     second = 0.5 * radius[None] * radius[None] * motion.acceleration
 
-    def gaps(world):  # the nearest obstacle at the centre and the hull's gap
+    def gaps(world, per_link):  # the nearest obstacle at the centre and the hull's gap
+        motion, radius, second = per_link
         parts = world_lib.separation_parts(*motion.near, *motion.far, world)
-        return (collision_lib.smallest_separation(parts, swing),
-                motion_gap(world, motion, radius[None], second, parts))
+        return (collision_lib.smallest_separation(parts, second),
+                motion_gap(world, motion, radius, second, parts))
     if world.near is None:
-        clearance, hull = gaps(world)
+        clearance, hull = gaps(world, (motion, radius[None], second))
     else:  # each link's listed obstacles, the reach for the others
         links = jnp.arange(swing.shape[0])[:, None]
         clearance, hull = collision_lib.near_minimum(
-            world, links, (*motion.near, *motion.far), gaps)
+            world, links, (*motion.near, *motion.far), gaps, (motion, radius[None], second))
         reach = jnp.asarray(world.near.reach, swing.dtype)
         hull = jnp.minimum(hull, reach - radius[None] * motion.top_speed)
     return swing - (clearance - margin), second - (hull - margin), clearance
