@@ -156,37 +156,46 @@ def test_a_lists_blocks_past_its_count_are_padding(rng, kind, collision):
     assert used.max() == lists.shape[1] and np.mean(used < used.max()) > 0.5
 
 
-def test_a_block_few_links_reach_is_read_by_those_alone(rng, monkeypatch):
+@pytest.mark.parametrize("kind", ["triangles", "circles"])
+def test_a_block_few_links_reach_is_read_by_those_alone(rng, monkeypatch, kind):
     """``over_blocks`` with chunks of 16 links: a block that at most ``SPARSE_SHARE`` of the
-    links' lists reach is read by those links alone, any other by every link; with the
-    default chunk, this batch is too small to gather links, and every link reads every block
-    some list reaches."""
-    problem = corridor_problem(rng, 300, "circles")
+    links' lists reach is read by those links alone, any other by every link (circles too,
+    where ``GATHERED`` names them); with the default chunk, this batch is too small to gather
+    links, and every link reads every block some list reaches."""
+    problem = corridor_problem(rng, 300, kind, collision="sampled")
     tables = problem.arrays.world.near
     link = rng.integers(0, ARM.n_joints, 1000)
     ends = rng.uniform(-40, 40, (4, 1000)).astype(np.float32)
     cells = np.asarray(nearby.near_cells(tables, link, *ends))
-    used = tables.circle_blocks[cells]
-    n_blocks = tables.circle_lists.shape[-1] // nearby.BLOCK
+    if kind == "circles":
+        used, block, field = tables.circle_blocks[cells], nearby.BLOCK, "circles"
+        n_blocks = tables.circle_lists.shape[-1] // block
+    else:
+        used, block, field = (tables.polygon_blocks[cells], nearby.POLYGON_BLOCK["sampled"],
+                              "vertices")
+        n_blocks = tables.polygon_lists.shape[-1] // block
     share = np.array([np.mean(used > b) for b in range(n_blocks)])
     assert np.any((share > 0) & (share <= nearby.SPARSE_SHARE)) and share[0] > 0.5
 
     def reads():  # how many blocks each link read
         return np.asarray(jax.jit(lambda cells: nearby.over_blocks(
-            tables, cells, lambda block, _: jnp.ones(block.circles.shape[-1]), "add"))(cells))
+            tables, cells, lambda world, _: jnp.ones(getattr(world, field).shape[-1]),
+            "add"))(cells))
     np.testing.assert_array_equal(reads(), np.sum(share > 0))
     monkeypatch.setattr(nearby, "CHUNK", 16)
+    monkeypatch.setattr(nearby, "GATHERED", ("circle", "polygon"))
     alone = share <= nearby.SPARSE_SHARE
     expected = np.sum(np.where(alone[None], used[:, None] > np.arange(n_blocks), share > 0), 1)
     np.testing.assert_array_equal(reads(), expected)
 
 
-@pytest.mark.parametrize("kind, collision", [("triangles", "sampled"), ("circles", "certified")])
+@pytest.mark.parametrize("kind, collision", [("triangles", "sampled"), ("triangles", "certified"),
+                                             ("circles", "certified")])
 def test_links_that_read_a_block_alone_get_the_bits_of_every_link_reading_it(
         rng, monkeypatch, kind, collision):
-    """Chunks of 16 links (the blocks few lists reach read by those links alone) give every
-    field of ``evaluate`` bit for bit as this batch gives with the default chunk (every link
-    reading every block)."""
+    """Chunks of 16 links (the blocks few lists reach read by those links alone; circles too,
+    where ``GATHERED`` names them) give every field of ``evaluate`` bit for bit as this batch
+    gives with the default chunk (every link reading every block)."""
     problem = corridor_problem(rng, 300, kind, collision=collision, margin=0.25)
     x = rng.uniform(-60, 60, (200, problem.n_free)).astype(np.float32)
 
@@ -194,6 +203,7 @@ def test_links_that_read_a_block_alone_get_the_bits_of_every_link_reading_it(
         return jax.jit(lambda arrays, x: evaluate(problem.spec, arrays, x))(problem.arrays, x)
     every = run()
     monkeypatch.setattr(nearby, "CHUNK", 16)
+    monkeypatch.setattr(nearby, "GATHERED", ("circle", "polygon"))
     alone = run()
     for field in every._fields:
         np.testing.assert_array_equal(getattr(alone, field), getattr(every, field))

@@ -18,8 +18,8 @@ one contiguous row of its slots' numbers (a row gathered whole costs far less th
 gathered one by one through an index list), and tested block by block in a ``lax.scan``
 (``over_blocks``), so the compiled program does not grow with the number of obstacles, and a
 batch's working set holds one block at a time. Lists differ in length, and a link pays for
-its own: a block no link's list reaches is skipped, and one that few lists reach is read by
-those links alone.
+its own: a block no link's list reaches is skipped, and a block of polygons that few lists
+reach is read by those links alone.
 """
 
 from __future__ import annotations
@@ -59,11 +59,13 @@ GRID_CELLS = 48
 # Bins of a link's direction (modulo pi: a segment is the same whichever way it points): a
 # list need only hold what lies near the links of one direction, a strip rather than a disc.
 DIRECTION_BINS = 16
-# ``over_blocks``: a block that at most this share of a batch's links read is read by those
-# alone, gathered in chunks of ``CHUNK`` links (finding and gathering them costs about as
-# much per link as reading a block of circles: ``benchmarks/RESULTS.md``, *Decisions and
+# ``over_blocks``: a block of the kinds ``GATHERED`` names that at most this share of a batch's
+# links read is read by those alone, gathered in chunks of ``CHUNK`` links. Finding and
+# gathering them costs about as much per link as reading a block of circles, far less than a
+# block of polygons, so circles are not gathered (``benchmarks/RESULTS.md``, *Decisions and
 # negative results*, "Each link reads its own list").
 SPARSE_SHARE = 0.5
+GATHERED = ("polygon",)
 CHUNK = 2048
 
 
@@ -404,12 +406,12 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
     """The sum or minimum of ``value(block, per_link)`` over the blocks of slots listed in
     ``cells`` (``near_cells``), each link paying for its own list's blocks alone.
 
-    Block by block (a ``lax.scan``; the body is the program's one copy of ``value``): a block
-    no link's list reaches is skipped; one that at most ``SPARSE_SHARE`` of the links read
-    is read by those alone, gathered in chunks of ``CHUNK`` links (a ``lax.while_loop`` over
-    as many chunks as they fill; in batches of at least ``2 * CHUNK`` links); any other is
-    read by every link, its padding included (which adds 0 to a sum and stays above the
-    tables' reach in a minimum).
+    Block by block (a ``lax.scan``): a block no link's list reaches is skipped; one of a kind
+    ``GATHERED`` names that at most ``SPARSE_SHARE`` of the links read is read by those
+    alone, gathered in chunks of ``CHUNK`` links (a ``lax.while_loop`` over as many chunks as
+    they fill; in batches of at least ``2 * CHUNK`` links); any other is read by every link,
+    its padding included (which adds 0 to a sum and stays above the tables' reach in a
+    minimum).
 
     Args:
       tables: the world's ``NearTables``.
@@ -429,15 +431,13 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
     cells = cells.reshape(n_links)
     per_link = jax.tree.map(lambda a: jnp.broadcast_to(a, shape).reshape(n_links), per_link)
     combined = {"add": jnp.add, "min": jnp.minimum}[combine]
-    gathers = n_links >= 2 * CHUNK
     result = None
-    for names, numbers, rows, used in (
-            (LISTED_FIELDS["circle"], tables.circles, tables.circle_rows,
-             tables.circle_blocks),
-            (LISTED_FIELDS["polygon"], tables.polygons, tables.polygon_rows,
-             tables.polygon_blocks)):
+    for kind in ("circle", "polygon"):
+        names, numbers = LISTED_FIELDS[kind], getattr(tables, f"{kind}s")
+        rows, used = getattr(tables, f"{kind}_rows"), getattr(tables, f"{kind}_blocks")
         if not numbers:
             continue
+        gathers = kind in GATHERED and n_links >= 2 * CHUNK
 
         def one_block(block, at=None, names=names, numbers=numbers, rows=rows):
             """``value`` of block ``block`` at links ``at`` (None: every link)."""
@@ -452,7 +452,7 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
                                   jax.eval_shape(one_block, jnp.int32(0)))
         used = jnp.asarray(used).at[cells].get(mode="promise_in_bounds")
 
-        def block_step(result, block, one_block=one_block, used=used):
+        def block_step(result, block, one_block=one_block, used=used, gathers=gathers):
             reads = used > block
             count = jnp.sum(reads, dtype=jnp.int32)
 
