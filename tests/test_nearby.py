@@ -9,9 +9,10 @@ import pytest
 import shapely
 
 import jaxarm
-from jaxarm.checks import certified
+from jaxarm.checks import certified, collision
 from jaxarm.checks.evaluate import evaluate
 from jaxarm.model import nearby
+from jaxarm.model.arm import link_endpoints
 from jaxarm.testing import dense_clearance, shapely_obstacles
 
 ARM = jaxarm.Arm((30.0, 30.0, 20.0))
@@ -177,7 +178,7 @@ def test_a_block_few_links_reach_is_read_by_those_alone(rng, monkeypatch, kind):
     share = np.array([np.mean(used > b) for b in range(n_blocks)])
     assert np.any((share > 0) & (share <= nearby.SPARSE_SHARE)) and share[0] > 0.5
 
-    def reads():  # how many blocks each link read
+    def reads(cells=cells):  # how many blocks each link read
         return np.asarray(jax.jit(lambda cells: nearby.over_blocks(
             tables, cells, lambda world, _: jnp.ones(getattr(world, field).shape[-1]),
             "add"))(cells))
@@ -187,6 +188,7 @@ def test_a_block_few_links_reach_is_read_by_those_alone(rng, monkeypatch, kind):
     alone = share <= nearby.SPARSE_SHARE
     expected = np.sum(np.where(alone[None], used[:, None] > np.arange(n_blocks), share > 0), 1)
     np.testing.assert_array_equal(reads(), expected)
+    assert reads(np.zeros(0, np.int32)).shape == (0,)  # no links: every block skipped
 
 
 @pytest.mark.parametrize("kind, collision", [("triangles", "sampled"), ("triangles", "certified"),
@@ -208,6 +210,27 @@ def test_links_that_read_a_block_alone_get_the_bits_of_every_link_reading_it(
     for field in every._fields:
         np.testing.assert_array_equal(getattr(alone, field), getattr(every, field))
     assert 0.1 < np.mean(np.asarray(every.fitness) > 0) < 0.9
+    # and the gathered blocks were read: with their values dropped, the check changes
+    monkeypatch.setattr(nearby, "_combined_at", lambda result, at, values, combine: result)
+    assert not np.array_equal(run().violation, every.violation)
+
+
+def test_refines_gradient_passes_through_gathered_blocks(rng, monkeypatch):
+    """Reverse-mode gradients of the links' clearances (``refine``'s barrier) through the
+    blocks read by a few links alone are those of every link reading every block."""
+    problem = corridor_problem(rng, 300, "triangles")
+    world = problem.arrays.world
+    theta = [jnp.asarray(rng.uniform(-3, 3, 300), jnp.float32) for _ in range(ARM.n_joints)]
+
+    def clearance(theta):  # near obstacles only: a clearance capped at 3 cm
+        return sum(jnp.sum(jnp.minimum(bound, 3.0)) for bound in collision.link_clearance_bounds(
+            world, link_endpoints(ARM.lengths, theta), exact=True))
+    every = jax.grad(clearance)(theta)
+    monkeypatch.setattr(nearby, "CHUNK", 16)
+    alone = jax.grad(clearance)(theta)
+    for joint in range(ARM.n_joints):
+        np.testing.assert_array_equal(alone[joint], every[joint])
+    assert np.abs(np.asarray(every[0])).sum() > 0
 
 
 @pytest.mark.parametrize("margin", [0.0, 1.0])

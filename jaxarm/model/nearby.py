@@ -411,7 +411,8 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
     alone, gathered in chunks of ``CHUNK`` links (a ``lax.while_loop`` over as many chunks as
     they fill; in batches of at least ``2 * CHUNK`` links); any other is read by every link,
     its padding included (which adds 0 to a sum and stays above the tables' reach in a
-    minimum).
+    minimum). Under a ``jax.vmap`` that batches ``cells`` (several problems), the branch is
+    batched too, and every branch runs.
 
     Args:
       tables: the world's ``NearTables``.
@@ -427,56 +428,65 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
     """
     shape = cells.shape
     n_links = math.prod(shape)
-    n_lists = int(np.prod(tables.circle_lists.shape[:-1]))
+    n_lists = math.prod(tables.circle_lists.shape[:-1])
     cells = cells.reshape(n_links)
     per_link = jax.tree.map(lambda a: jnp.broadcast_to(a, shape).reshape(n_links), per_link)
-    combined = {"add": jnp.add, "min": jnp.minimum}[combine]
+    elementwise = {"add": jnp.add, "min": jnp.minimum}[combine]
+    # A block is gathered where at most SPARSE_SHARE of the links read it: in this many chunks.
+    n_chunks = -(-int(SPARSE_SHARE * n_links) // CHUNK)
     result = None
     for kind in ("circle", "polygon"):
         names, numbers = LISTED_FIELDS[kind], getattr(tables, f"{kind}s")
-        rows, used = getattr(tables, f"{kind}_rows"), getattr(tables, f"{kind}_blocks")
+        rows, blocks = getattr(tables, f"{kind}_rows"), getattr(tables, f"{kind}_blocks")
         if not numbers:
             continue
         gathers = kind in GATHERED and n_links >= 2 * CHUNK
 
         def one_block(block, at=None, names=names, numbers=numbers, rows=rows):
             """``value`` of block ``block`` at links ``at`` (None: every link)."""
-            links = (cells, per_link) if at is None else jax.tree.map(
+            cells_at, own = (cells, per_link) if at is None else jax.tree.map(
                 lambda a: a.at[at].get(mode="promise_in_bounds"), (cells, per_link))
-            row = jnp.asarray(rows).at[block * n_lists + links[0]].get(mode="promise_in_bounds")
-            return value(block_world(numbers, names, row), links[1])
+            row = jnp.asarray(rows).at[block * n_lists + cells_at].get(mode="promise_in_bounds")
+            return value(block_world(numbers, names, row), own)
 
         if result is None:
             identity = {"add": 0.0, "min": jnp.inf}[combine]
             result = jax.tree.map(lambda like: jnp.full(like.shape, identity, like.dtype),
                                   jax.eval_shape(one_block, jnp.int32(0)))
-        used = jnp.asarray(used).at[cells].get(mode="promise_in_bounds")
+        blocks_needed = jnp.asarray(blocks).at[cells].get(mode="promise_in_bounds")
 
-        def block_step(result, block, one_block=one_block, used=used, gathers=gathers):
-            reads = used > block
+        def block_step(result, block, one_block=one_block, blocks_needed=blocks_needed,
+                       gathers=gathers):
+            reads = blocks_needed > block
             count = jnp.sum(reads, dtype=jnp.int32)
 
             def every_link(result):
-                return jax.tree.map(combined, result, one_block(block))
+                return jax.tree.map(elementwise, result, one_block(block))
 
             def its_readers(result):
+                # A scan over the chunks, each skipped past the readers (a ``lax.cond``), not
+                # a while loop: reverse-mode differentiable (refine's gradient).
                 order = _gathered_first(reads, CHUNK)
 
-                def one_chunk(state):
-                    first, result = state
-                    at = jax.lax.dynamic_slice(order, (first,), (CHUNK,))
-                    values = one_block(block, jnp.minimum(at, n_links - 1))
-                    return first + CHUNK, jax.tree.map(
-                        lambda r, v: _combined_at(r, at, v, combine), result, values)
+                def one_chunk(result, first):
+                    def read(result):
+                        at = jax.lax.dynamic_slice(order, (first,), (CHUNK,))
+                        values = one_block(block, jnp.minimum(at, n_links - 1))
+                        return jax.tree.map(lambda r, v: _combined_at(r, at, v, combine),
+                                            result, values)
+                    return jax.lax.cond(first < count, read, lambda result: result,
+                                        result), None
 
-                return jax.lax.while_loop(lambda state: state[0] < count, one_chunk,
-                                          (jnp.int32(0), result))[1]
+                firsts = jnp.arange(n_chunks, dtype=jnp.int32) * CHUNK
+                return jax.lax.scan(one_chunk, result, firsts)[0]
 
-            branch = jnp.where(count > 0, 1, 0)
-            if gathers:
-                branch = jnp.where((count > 0) & (count <= SPARSE_SHARE * n_links), 2, branch)
-            return jax.lax.switch(branch, [lambda result: result, every_link, its_readers][
-                :3 if gathers else 2], result), None
+            skip = lambda result: result  # noqa: E731
+            if not gathers:
+                return jax.lax.switch(jnp.where(count > 0, 1, 0), [skip, every_link],
+                                      result), None
+            sparse = (count > 0) & (count <= SPARSE_SHARE * n_links)
+            branch = jnp.where(sparse, 2, jnp.where(count > 0, 1, 0))
+            return jax.lax.switch(branch, [skip, every_link, its_readers], result), None
 
         n_blocks = rows.shape[0] // n_lists
         result, _ = jax.lax.scan(block_step, result, jnp.arange(n_blocks, dtype=jnp.int32))

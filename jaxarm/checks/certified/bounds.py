@@ -310,7 +310,7 @@ def rows_against(world, swing, motion: LinkMotion, radius, margin):
     def gaps(world, per_link):  # the nearest obstacle at the centre and the hull's gap
         motion, radius, second = per_link
         parts = world_lib.separation_parts(*motion.near, *motion.far, world)
-        return (collision_lib.smallest_separation(parts, second),
+        return (collision_lib.smallest_separation(parts, second),  # second: the links' shape
                 motion_gap(world, motion, radius, second, parts))
     if world.near is None:
         clearance, hull = gaps(world, (motion, radius[None], second))
