@@ -408,11 +408,11 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
 
     Block by block (a ``lax.scan``): a block no link's list reaches is skipped; one of a kind
     ``GATHERED`` names that at most ``SPARSE_SHARE`` of the links read is read by those
-    alone, gathered in chunks of ``CHUNK`` links (a ``lax.while_loop`` over as many chunks as
-    they fill; in batches of at least ``2 * CHUNK`` links); any other is read by every link,
-    its padding included (which adds 0 to a sum and stays above the tables' reach in a
-    minimum). Under a ``jax.vmap`` that batches ``cells`` (several problems), the branch is
-    batched too, and every branch runs.
+    alone, gathered in chunks of ``CHUNK`` links (a ``lax.scan`` over as many as they can
+    fill, each skipped past them by a ``lax.cond``; in batches of at least ``2 * CHUNK``
+    links); any other is read by every link, its padding included (which adds 0 to a sum and
+    stays above the tables' reach in a minimum). Under a ``jax.vmap`` that batches ``cells``
+    (several problems), the branch is batched too, and every branch runs.
 
     Args:
       tables: the world's ``NearTables``.
