@@ -52,6 +52,43 @@ def test_small_worlds_have_no_tables_and_large_ones_do(rng):
     assert tables.circle_lists.shape[:2] == (ARM.n_joints, nearby.DIRECTION_BINS)
 
 
+def test_a_few_dozen_polygons_get_one_list_of_every_slot_and_more_get_the_grid(rng):
+    problem = corridor_problem(rng, 40, "triangles")  # 120 polygon edges
+    assert nearby.reads_every_slot(problem.capacities)
+    tables = problem.arrays.world.near
+    assert nearby.lists_every_slot(tables) and float(tables.reach) == np.inf
+    lists = tables.polygon_lists.reshape(ARM.n_joints, -1)
+    block = nearby.POLYGON_BLOCK["certified"]
+    assert lists.shape[1] == 40 and np.all(lists == np.arange(40))
+    assert np.all(tables.polygon_blocks == 40 // block)
+    for row in range(40 // block):  # block b's row holds slots b * block ... in order
+        np.testing.assert_array_equal(
+            tables.polygons[0][tables.polygon_rows[row * ARM.n_joints]],
+            problem.arrays.world.vertices[row * block:(row + 1) * block].astype(np.float32))
+    for count, kind in ((200, "triangles"), (nearby.BROAD_PHASE_WORK + 1, "circles")):
+        problem = corridor_problem(rng, count, kind)
+        assert not nearby.reads_every_slot(problem.capacities)
+        assert not nearby.lists_every_slot(problem.arrays.world.near)
+
+
+def test_a_links_direction_bin_is_that_of_its_angle(rng):
+    """``direction_bin`` (cross products) against numpy's ``arctan2`` modulo pi, for
+    directions away from the bins' edges (there either bin is sound), of every length."""
+    n_bins = nearby.DIRECTION_BINS
+    angle = rng.uniform(-np.pi, np.pi, 20_000)
+    within = np.mod(angle, np.pi / n_bins) / (np.pi / n_bins)
+    angle = angle[(within > 1e-4) & (within < 1 - 1e-4)]
+    length = 10.0 ** rng.uniform(-3, 2, angle.shape)
+    dx, dy = (length * np.cos(angle)).astype(np.float32), (length * np.sin(angle)).astype(
+        np.float32)
+    expected = np.floor(np.mod(angle, np.pi) / (np.pi / n_bins)).astype(np.int32)
+    found = np.asarray(nearby.direction_bin(jnp.asarray(dx), jnp.asarray(dy), n_bins))
+    np.testing.assert_array_equal(found, expected)
+    assert set(np.unique(found)) == set(range(n_bins))
+    zero = nearby.direction_bin(jnp.zeros(2), jnp.array([0.0, jnp.nan]), n_bins)
+    np.testing.assert_array_equal(zero, [0, 0])
+
+
 @pytest.mark.parametrize("count, collision, largest_kept", [
     (nearby.BROAD_PHASE_WORK + 1, "certified", True), (1000, "certified", False),
     (nearby.BROAD_PHASE_WORK + 1, "sampled", True), (1500, "sampled", False)])
@@ -233,11 +270,15 @@ def test_refines_gradient_passes_through_gathered_blocks(rng, monkeypatch):
     assert np.abs(np.asarray(every[0])).sum() > 0
 
 
-@pytest.mark.parametrize("margin", [0.0, 1.0])
-def test_the_sampled_check_gives_the_same_verdicts_with_and_without_tables(rng, margin):
+@pytest.mark.parametrize("margin, every_slot", [(0.0, False), (1.0, False), (1.0, True)])
+def test_the_sampled_check_gives_the_same_verdicts_with_and_without_tables(
+        rng, monkeypatch, margin, every_slot):
     # just past the broad phase's threshold: testing every slot compiles slowly past it
+    if not every_slot:  # the grid's lists, not one list of every slot
+        monkeypatch.setattr(nearby, "EVERY_SLOT_EDGES", 0)
     problem = corridor_problem(rng, nearby.BROAD_PHASE_WORK // 3 + 1, "triangles",
                                collision="sampled", margin=margin)
+    assert nearby.lists_every_slot(problem.arrays.world.near) == every_slot
     x = rng.uniform(-60, 60, (500, problem.n_free)).astype(np.float32)
     run = jax.jit(lambda arrays, x: evaluate(problem.spec, arrays, x))
     near, every = run(problem.arrays, x), run(without_tables(problem), x)
@@ -250,8 +291,11 @@ def test_the_sampled_check_gives_the_same_verdicts_with_and_without_tables(rng, 
     assert 0.2 < np.mean(np.asarray(near.fitness) > 0) < 0.99
 
 
-def test_the_certified_check_gives_the_same_verdicts_with_and_without_tables(rng):
-    problem = corridor_problem(rng, nearby.BROAD_PHASE_WORK + 1, "circles", margin=0.5)
+@pytest.mark.parametrize("count, kind", [(nearby.BROAD_PHASE_WORK + 1, "circles"),
+                                         (nearby.BROAD_PHASE_WORK // 3 + 1, "triangles")])
+def test_the_certified_check_gives_the_same_verdicts_with_and_without_tables(rng, count, kind):
+    """The grid's lists (circles) and one list of every slot (a few dozen triangles)."""
+    problem = corridor_problem(rng, count, kind, margin=0.5)
     x = rng.uniform(-60, 60, (400, problem.n_free)).astype(np.float32)
     run = jax.jit(lambda arrays, x: certified.check(problem.spec, arrays, x))
     near, every = run(problem.arrays, x), run(without_tables(problem), x)
@@ -261,15 +305,17 @@ def test_the_certified_check_gives_the_same_verdicts_with_and_without_tables(rng
     assert np.asarray(near.pieces).sum() > 0  # the bisection ran
 
 
-@pytest.mark.parametrize("kind, collision", [("circles", "certified"),
-                                             ("triangles", "certified"),
-                                             ("triangles", "sampled")])
-def test_certified_free_among_hundreds_of_obstacles_is_free_for_the_dense_oracle(rng, kind,
-                                                                                collision):
+@pytest.mark.parametrize("count, kind, collision", [(300, "circles", "certified"),
+                                                    (300, "triangles", "certified"),
+                                                    (300, "triangles", "sampled"),
+                                                    (60, "triangles", "certified")])
+def test_certified_free_among_hundreds_of_obstacles_is_free_for_the_dense_oracle(
+        rng, count, kind, collision):
     """No path certified free comes closer than the margin at any of 20,001 times (shapely);
     paths the oracle finds clear by 2 tolerances are certified. ``certify`` of a sampled
-    problem reads the sampled check's tables (a shorter reach, polygon blocks of 4)."""
-    problem = corridor_problem(rng, 300, kind, collision=collision, margin=0.25)
+    problem reads the sampled check's tables (a shorter reach, polygon blocks of 4); 60
+    triangles get one list of every slot."""
+    problem = corridor_problem(rng, count, kind, collision=collision, margin=0.25)
     x = rng.uniform(-60, 60, (300, problem.n_free))
     certificate = jaxarm.certify(problem, x)
     free = np.asarray(certificate.free)

@@ -11,7 +11,8 @@ then, from every obstacle left out of the list, at least ``reach`` away: the che
 listed obstacles exactly and bound the others by ``reach`` (``NearTables.reach``), so every
 bound stays a lower bound on the true distance and every verdict stays sound. Smaller worlds
 keep every slot written out in one program, the kernels of ``jaxarm.model.world`` as they
-were, bit for bit.
+were, bit for bit; those with few polygon edges (``reads_every_slot``) get tables whose one
+list per link is every slot (``every_slot``), read block by block for all links at once.
 
 Obstacles are data here: the lists are cut into blocks, each distinct block stored once as
 one contiguous row of its slots' numbers (a row gathered whole costs far less than its slots
@@ -54,6 +55,13 @@ POLYGON_BLOCK = {"sampled": 4, "certified": 8}
 # "Scenes at scale": 64 circles or 16 triangles written out, the last sizes before that
 # form's cliff).
 BROAD_PHASE_WORK = 64
+# Worlds past ``BROAD_PHASE_WORK`` of at most this many polygon edges (and at most
+# ``BROAD_PHASE_WORK`` circles) get tables that list every slot for every link
+# (``every_slot``): a block of polygons read once for all links costs each link far less than
+# its own list's blocks gathered for it, which pays only where lists are much shorter than
+# the world (``benchmarks/RESULTS.md``, *Decisions and negative results*, "A few dozen
+# polygons read by every link at once").
+EVERY_SLOT_EDGES = 256
 # Cells per axis of the grid over the arm's reach.
 GRID_CELLS = 48
 # Bins of a link's direction (modulo pi: a segment is the same whichever way it points): a
@@ -88,7 +96,7 @@ class NearTables(NamedTuple):
     reach: np.ndarray  # shape=(), cm: every slot not listed is at least this far from the link
     # The lists as slot indices, shape (n_links, DIRECTION_BINS, n_cells, n_cells, k), int32,
     # padded with the count of slots (no slot): what ``circles`` and ``polygons`` hold the
-    # numbers of. The checks read their shapes only.
+    # numbers of (``every_slot``'s: one bin and one cell). The checks read their shapes only.
     circle_lists: np.ndarray
     polygon_lists: np.ndarray
     circle_rows: np.ndarray  # int32: the row of each block of each list (see above)
@@ -201,6 +209,40 @@ def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> N
                                     blocks["polygons"]),
         **_listed_numbers(world, "circle", lists["circles"], blocks["circles"], empty),
         **_listed_numbers(world, "polygon", lists["polygons"], blocks["polygons"], empty))
+
+
+def every_slot(world: WorldArrays, n_links: int, collision: str = "certified") -> NearTables:
+    """Tables whose every list holds every valid slot of the world (one cell, one direction
+    bin, an infinite reach: no slot is left out), for an arm of ``n_links`` links:
+    ``over_blocks`` reads each of their blocks once for every link at once, its numbers
+    broadcast as those of a world written out. Blocks of ``BLOCK`` circles and
+    ``POLYGON_BLOCK[collision]`` polygons, in slot order."""
+    lists, fields = {}, {}
+    for kind, valid, block in (("circle", world.circle_valid, BLOCK),
+                               ("polygon", world.polygon_valid, POLYGON_BLOCK[collision])):
+        slots = np.flatnonzero(np.asarray(valid))
+        one = np.full(block * max(1, -(-len(slots) // block)), len(valid), np.int32)
+        one[:len(slots)] = slots
+        lists[kind] = np.tile(one, (n_links, 1, 1, 1, 1))
+        fields[f"{kind}_blocks"] = _used_blocks(lists[kind], len(valid), block)
+        fields.update(_listed_numbers(world, kind, lists[kind], block, _EMPTY))
+    return NearTables(origin=np.zeros(2), inverse_cell=np.asarray(0.0),
+                      reach=np.asarray(np.inf), circle_lists=lists["circle"],
+                      polygon_lists=lists["polygon"], **fields)
+
+
+def reads_every_slot(capacities: tuple[int, int, int]) -> bool:
+    """Whether a world packed at ``capacities`` gets ``every_slot``'s tables rather than
+    ``build``'s (static): past ``BROAD_PHASE_WORK``, with at most ``BROAD_PHASE_WORK``
+    circle slots and ``EVERY_SLOT_EDGES`` polygon edges."""
+    circles, polygons, vertices = capacities
+    return (uses_broad_phase(capacities) and circles <= BROAD_PHASE_WORK
+            and polygons * vertices <= EVERY_SLOT_EDGES)
+
+
+def lists_every_slot(tables: NearTables) -> bool:
+    """Whether ``tables`` are ``every_slot``'s: each link's one list (static)."""
+    return tables.circle_lists.shape[1:4] == (1, 1, 1)
 
 
 def _circle_boxes(world: WorldArrays):
@@ -323,6 +365,10 @@ _MASKED = {"circles": 1e4, "circle_valid": False, "vertices": 1e4, "normals": 0.
            "extent_low": 0.0, "extent_high": 0.0, "edge_valid": False, "polygon_valid": False}
 
 
+# ``every_slot``'s padding: a circle of radius 0 at (1e4, 1e4), a masked polygon.
+_EMPTY = dict(_MASKED, circles=np.array([1e4, 1e4, 0.0]))
+
+
 def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int,
                     empty: dict) -> dict:
     """``NearTables``' rows of one kind ("circle" or "polygon"): ``{kind}_rows`` and the
@@ -368,11 +414,27 @@ def near_cells(tables: NearTables, link, sx, sy, ex, ey):
     int32 of that shape, ``NearTables``' c."""
     row, column = cell_of(tables, 0.5 * (sx + ex), 0.5 * (sy + ey))
     n_bins, n_cells = tables.circle_lists.shape[1], tables.circle_lists.shape[-2]
-    angle = jnp.arctan2(ey - sy, ex - sx)  # (-pi, pi]
-    angle = jnp.where(angle < 0, angle + jnp.pi, angle)  # [0, pi]
-    direction = jnp.clip(jnp.floor(jnp.nan_to_num(angle) * (n_bins / jnp.pi)), 0, n_bins - 1)
-    lists = jnp.asarray(link, jnp.int32) * n_bins + direction.astype(jnp.int32)
+    lists = jnp.asarray(link, jnp.int32) * n_bins + direction_bin(ex - sx, ey - sy, n_bins)
     return (lists * n_cells + row) * n_cells + column
+
+
+def direction_bin(dx, dy, n_bins: int):
+    """The bin of direction (dx, dy) modulo pi, each of shape (...): int32 k in [0, n_bins)
+    where the angle lies in [k pi / n_bins, (k + 1) pi / n_bins] (0 for a zero or NaN
+    direction).
+
+    The number of the bins' edges the direction, turned into the upper half plane, lies
+    counter-clockwise of (the sign of a cross product each): a few multiplications, where
+    ``arctan2`` cost the broad phase more than reading its blocks of circles
+    (``benchmarks/RESULTS.md``, *Decisions and negative results*, "A link's direction bin by
+    cross products"). An angle within rounding of an edge may fall in either bin: the tables
+    widen each bin for that (``build``)."""
+    flip = dy < 0
+    dx, dy = jnp.where(flip, -dx, dx), jnp.where(flip, -dy, dy)
+    direction = jnp.zeros(jnp.shape(dx), jnp.int32)
+    for edge in np.arange(1, n_bins) * (np.pi / n_bins):
+        direction = direction + (np.cos(edge) * dy - np.sin(edge) * dx > 0).astype(jnp.int32)
+    return direction
 
 
 def block_world(numbers: tuple, names: tuple, index) -> WorldArrays:
@@ -406,7 +468,9 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
     """The sum or minimum of ``value(block, per_link)`` over the blocks of slots listed in
     ``cells`` (``near_cells``), each link paying for its own list's blocks alone.
 
-    Block by block (a ``lax.scan``): a block no link's list reaches is skipped; one of a kind
+    Block by block (a ``lax.scan``). Tables that list every slot (``every_slot``): each block
+    read once, its numbers broadcast against every link. Otherwise a block no link's list
+    reaches is skipped; one of a kind
     ``GATHERED`` names that at most ``SPARSE_SHARE`` of the links read is read by those
     alone, gathered in chunks of ``CHUNK`` links (a ``lax.scan`` over as many as they can
     fill, each skipped past them by a ``lax.cond``; in batches of at least ``2 * CHUNK``
@@ -455,6 +519,11 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
                                   jax.eval_shape(one_block, jnp.int32(0)))
         blocks_needed = jnp.asarray(blocks).at[cells].get(mode="promise_in_bounds")
 
+        def every_slot_step(result, block, names=names, numbers=numbers, rows=rows):
+            row = jnp.asarray(rows)[block * n_lists]  # every list's block is the same
+            return jax.tree.map(elementwise, result,
+                                value(block_world(numbers, names, row), per_link)), None
+
         def block_step(result, block, one_block=one_block, blocks_needed=blocks_needed,
                        gathers=gathers):
             reads = blocks_needed > block
@@ -489,7 +558,8 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
             return jax.lax.switch(branch, [skip, every_link, its_readers], result), None
 
         n_blocks = rows.shape[0] // n_lists
-        result, _ = jax.lax.scan(block_step, result, jnp.arange(n_blocks, dtype=jnp.int32))
+        step = every_slot_step if lists_every_slot(tables) else block_step
+        result, _ = jax.lax.scan(step, result, jnp.arange(n_blocks, dtype=jnp.int32))
     return jax.tree.map(lambda a: a.reshape(shape), result)
 
 

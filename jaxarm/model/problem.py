@@ -321,6 +321,8 @@ class Problem:
         if not nearby.uses_broad_phase(self.capacities):
             return world
         lengths = np.asarray(self.arm.lengths)
+        if nearby.reads_every_slot(self.capacities):
+            return world._replace(near=nearby.every_slot(world, len(lengths), self.collision))
         certified = self.collision == "certified"
         return world._replace(near=nearby.build(
             world, lengths, nearby.reach_candidates(lengths, self.margin, certified),
