@@ -11,8 +11,9 @@ then, from every obstacle left out of the list, at least ``reach`` away: the che
 listed obstacles exactly and bound the others by ``reach`` (``NearTables.reach``), so every
 bound stays a lower bound on the true distance and every verdict stays sound. Smaller worlds
 keep every slot written out in one program, the kernels of ``jaxarm.model.world`` as they
-were, bit for bit; those with few polygon edges (``reads_every_slot``) get tables whose one
-list per link is every slot (``every_slot``), read block by block for all links at once.
+were, bit for bit. Worlds past it with few polygon edges (``reads_every_slot``) get tables
+whose one list per link is every slot (``every_slot``), read block by block for all links at
+once.
 
 Obstacles are data here: the lists are cut into blocks, each distinct block stored once as
 one contiguous row of its slots' numbers (a row gathered whole costs far less than its slots
@@ -211,12 +212,16 @@ def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> N
         **_listed_numbers(world, "polygon", lists["polygons"], blocks["polygons"], empty))
 
 
-def every_slot(world: WorldArrays, n_links: int, collision: str = "certified") -> NearTables:
+def every_slot(world: WorldArrays, lengths, collision: str = "certified") -> NearTables:
     """Tables whose every list holds every valid slot of the world (one cell, one direction
-    bin, an infinite reach: no slot is left out), for an arm of ``n_links`` links:
+    bin, an infinite reach: no slot is left out), for an arm with link ``lengths`` (cm):
     ``over_blocks`` reads each of their blocks once for every link at once, its numbers
     broadcast as those of a world written out. Blocks of ``BLOCK`` circles and
     ``POLYGON_BLOCK[collision]`` polygons, in slot order."""
+    n_links, arm_reach = len(lengths), float(np.sum(lengths))
+    # The padding circle: farther from every point within the arm's reach than 1e4 cm.
+    far = 1e4 + 2.0 * arm_reach
+    empty = dict(_MASKED, circles=np.array([far, far, 0.0]))
     lists, fields = {}, {}
     for kind, valid, block in (("circle", world.circle_valid, BLOCK),
                                ("polygon", world.polygon_valid, POLYGON_BLOCK[collision])):
@@ -225,7 +230,7 @@ def every_slot(world: WorldArrays, n_links: int, collision: str = "certified") -
         one[:len(slots)] = slots
         lists[kind] = np.tile(one, (n_links, 1, 1, 1, 1))
         fields[f"{kind}_blocks"] = _used_blocks(lists[kind], len(valid), block)
-        fields.update(_listed_numbers(world, kind, lists[kind], block, _EMPTY))
+        fields.update(_listed_numbers(world, kind, lists[kind], block, empty))
     return NearTables(origin=np.zeros(2), inverse_cell=np.asarray(0.0),
                       reach=np.asarray(np.inf), circle_lists=lists["circle"],
                       polygon_lists=lists["polygon"], **fields)
@@ -360,13 +365,10 @@ def _used_blocks(lists: np.ndarray, n_slots: int, block: int) -> np.ndarray:
 
 
 # The numbers of a masked empty slot, far from any arm (a polygon list's padding; a circle
-# list's is a far circle, ``build``), and of an absent field (``block_world``).
+# list's is a far circle, ``build`` and ``every_slot``), and of an absent field
+# (``block_world``).
 _MASKED = {"circles": 1e4, "circle_valid": False, "vertices": 1e4, "normals": 0.0,
            "extent_low": 0.0, "extent_high": 0.0, "edge_valid": False, "polygon_valid": False}
-
-
-# ``every_slot``'s padding: a circle of radius 0 at (1e4, 1e4), a masked polygon.
-_EMPTY = dict(_MASKED, circles=np.array([1e4, 1e4, 0.0]))
 
 
 def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int,
@@ -470,13 +472,12 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
 
     Block by block (a ``lax.scan``). Tables that list every slot (``every_slot``): each block
     read once, its numbers broadcast against every link. Otherwise a block no link's list
-    reaches is skipped; one of a kind
-    ``GATHERED`` names that at most ``SPARSE_SHARE`` of the links read is read by those
-    alone, gathered in chunks of ``CHUNK`` links (a ``lax.scan`` over as many as they can
-    fill, each skipped past them by a ``lax.cond``; in batches of at least ``2 * CHUNK``
-    links); any other is read by every link, its padding included (which adds 0 to a sum and
-    stays above the tables' reach in a minimum). Under a ``jax.vmap`` that batches ``cells``
-    (several problems), the branch is batched too, and every branch runs.
+    reaches is skipped; one of a kind ``GATHERED`` names that at most ``SPARSE_SHARE`` of the
+    links read is read by those alone, gathered in chunks of ``CHUNK`` links (a ``lax.scan``
+    over as many as they can fill, each skipped past them by a ``lax.cond``; in batches of at
+    least ``2 * CHUNK`` links); any other is read by every link, its padding included (which
+    adds 0 to a sum and stays above the tables' reach in a minimum). Under a ``jax.vmap`` that
+    batches ``cells`` (several problems), the branch is batched too, and every branch runs.
 
     Args:
       tables: the world's ``NearTables``.

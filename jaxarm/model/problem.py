@@ -322,7 +322,7 @@ class Problem:
             return world
         lengths = np.asarray(self.arm.lengths)
         if nearby.reads_every_slot(self.capacities):
-            return world._replace(near=nearby.every_slot(world, len(lengths), self.collision))
+            return world._replace(near=nearby.every_slot(world, lengths, self.collision))
         certified = self.collision == "certified"
         return world._replace(near=nearby.build(
             world, lengths, nearby.reach_candidates(lengths, self.margin, certified),
