@@ -32,9 +32,11 @@ def corridor_world(rng, count: int, kind: str) -> jaxarm.World:
                                   for x, y, r in placed])
 
 
-def corridor_problem(rng, count, kind, collision="certified", margin=0.0):
+def corridor_problem(rng, count, kind, collision="certified", margin=0.0, world=None):
+    """A problem among ``corridor_world``'s obstacles (or ``world``'s)."""
+    world = corridor_world(rng, count, kind) if world is None else world
     return jaxarm.Problem(arm=ARM, start=[0.0, 0.0, 0.0], goal=[0.5, 0.0, 0.0],
-                          world=corridor_world(rng, count, kind), collision=collision,
+                          world=world, collision=collision,
                           margin=margin, init_low=-60.0, init_high=60.0)
 
 
@@ -270,7 +272,8 @@ def test_refines_gradient_passes_through_gathered_blocks(rng, monkeypatch):
     assert np.abs(np.asarray(every[0])).sum() > 0
 
 
-@pytest.mark.parametrize("margin, every_slot", [(0.0, False), (1.0, False), (1.0, True)])
+@pytest.mark.parametrize("margin, every_slot", [(0.0, False), (1.0, False), (0.0, True),
+                                               (1.0, True)])
 def test_the_sampled_check_gives_the_same_verdicts_with_and_without_tables(
         rng, monkeypatch, margin, every_slot):
     # just past the broad phase's threshold: testing every slot compiles slowly past it
@@ -296,6 +299,7 @@ def test_the_sampled_check_gives_the_same_verdicts_with_and_without_tables(
 def test_the_certified_check_gives_the_same_verdicts_with_and_without_tables(rng, count, kind):
     """The grid's lists (circles) and one list of every slot (a few dozen triangles)."""
     problem = corridor_problem(rng, count, kind, margin=0.5)
+    assert nearby.lists_every_slot(problem.arrays.world.near) == (kind == "triangles")
     x = rng.uniform(-60, 60, (400, problem.n_free)).astype(np.float32)
     run = jax.jit(lambda arrays, x: certified.check(problem.spec, arrays, x))
     near, every = run(problem.arrays, x), run(without_tables(problem), x)
@@ -316,6 +320,7 @@ def test_certified_free_among_hundreds_of_obstacles_is_free_for_the_dense_oracle
     problem reads the sampled check's tables (a shorter reach, polygon blocks of 4); 60
     triangles get one list of every slot."""
     problem = corridor_problem(rng, count, kind, collision=collision, margin=0.25)
+    assert nearby.lists_every_slot(problem.arrays.world.near) == (count < 100)
     x = rng.uniform(-60, 60, (300, problem.n_free))
     certificate = jaxarm.certify(problem, x)
     free = np.asarray(certificate.free)
@@ -325,6 +330,35 @@ def test_certified_free_among_hundreds_of_obstacles_is_free_for_the_dense_oracle
     assert np.all(clearance[free[rows]] >= problem.margin - 1e-4), clearance[free[rows]].min()
     clear = clearance >= problem.margin + 2 * problem.certify_tol
     assert np.all(free[rows][clear])
+
+
+@pytest.mark.parametrize("check", ["sampled", "certified"])
+def test_one_list_of_every_circle_and_polygon_gives_the_verdicts_of_every_slot(rng, check):
+    """A world of 40 circles and 10 triangles reads one list of every slot: its padding
+    circles lie more than 1e4 cm beyond the arm's reach, and each check's verdicts (and
+    the sampled check's fitness) are those of every slot written out."""
+    world = jaxarm.World(circles=corridor_world(rng, 40, "circles").circles,
+                         polygons=corridor_world(rng, 10, "triangles").polygons)
+    problem = corridor_problem(rng, None, None, collision=check, margin=0.5, world=world)
+    tables = problem.arrays.world.near
+    assert nearby.lists_every_slot(tables) and tables.circle_lists.shape[-1] == 48
+    listed = tables.circles[0].reshape(-1, 3)
+    real = np.isin(listed, np.asarray(problem.world.circles, np.float32)).all(axis=1)
+    padding = listed[~real]
+    assert real.sum() == 40 and np.all(np.hypot(*padding[:, :2].T) - padding[:, 2]
+                                       > 1e4 + ARM.reach)
+    x = rng.uniform(-60, 60, (400, problem.n_free)).astype(np.float32)
+    if check == "sampled":
+        run = jax.jit(lambda arrays, x: evaluate(problem.spec, arrays, x))
+        near, every = run(problem.arrays, x), run(without_tables(problem), x)
+        np.testing.assert_array_equal(near.fitness, every.fitness)
+        assert 0.1 < np.mean(np.asarray(near.fitness) > 0) < 0.99
+        return
+    run = jax.jit(lambda arrays, x: certified.check(problem.spec, arrays, x))
+    near, every = run(problem.arrays, x), run(without_tables(problem), x)
+    for field in ("free", "colliding", "exhausted"):
+        np.testing.assert_array_equal(getattr(near, field), getattr(every, field))
+    assert np.asarray(near.free).sum() > 50 and np.asarray(near.colliding).sum() > 10
 
 
 def test_a_world_of_a_thousand_obstacles_compiles_the_program_of_two_hundred(rng):

@@ -81,12 +81,13 @@ CHUNK = 2048
 
 class NearTables(NamedTuple):
     """The obstacles near a link whose midpoint is in a grid cell and whose direction is in
-    a bin, as data (a pytree of arrays; ``build`` makes it).
+    a bin, as data (a pytree of arrays; ``build`` makes it, or ``every_slot``: one cell and
+    one bin, every slot listed, ``inverse_cell`` 0 and an infinite ``reach``).
 
     ``circles`` and ``polygons`` hold the listed slots' own numbers: each of the fields
     ``LISTED_FIELDS`` names for that kind, of shape (n_rows, block, *slot data),
     one row per distinct block of slots; ``circle_rows`` and ``polygon_rows``, of shape
-    (n_blocks * M,), M = n_links * DIRECTION_BINS * n_cells**2 lists, say which row holds
+    (n_blocks * M,), M = n_links * n_bins * n_cells**2 lists, say which row holds
     block b of list c (``near_cells``) at b * M + c. A block of a link's list is then one
     contiguous row, read whole (``block_world``), with no index list to follow slot by slot;
     lists that share a block share its row.
@@ -197,10 +198,7 @@ def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> N
     reach = max(value for value, kept in candidates.items() if list_blocks(kept) == shortest)
     lists = {kind: _padded(kept, len(boxes[kind][0]), blocks[kind])
              for kind, kept in candidates[reach].items()}
-    # The padding circle: farther from every point within the arm's reach than the reach
-    # plus the arm's length, so that no bound the checks take from it comes near the reach.
-    far = 1e4 + 2.0 * (arm_reach + reach)
-    empty = dict(_MASKED, circles=np.array([far, far, 0.0]))
+    empty = _padding(arm_reach, reach)
     return NearTables(
         origin=np.array([-arm_reach, -arm_reach]), inverse_cell=np.asarray(1.0 / cell),
         reach=np.asarray(reach), circle_lists=lists["circles"],
@@ -218,15 +216,12 @@ def every_slot(world: WorldArrays, lengths, collision: str = "certified") -> Nea
     ``over_blocks`` reads each of their blocks once for every link at once, its numbers
     broadcast as those of a world written out. Blocks of ``BLOCK`` circles and
     ``POLYGON_BLOCK[collision]`` polygons, in slot order."""
-    n_links, arm_reach = len(lengths), float(np.sum(lengths))
-    # The padding circle: farther from every point within the arm's reach than 1e4 cm.
-    far = 1e4 + 2.0 * arm_reach
-    empty = dict(_MASKED, circles=np.array([far, far, 0.0]))
+    n_links, empty = len(lengths), _padding(float(np.sum(lengths)))
     lists, fields = {}, {}
     for kind, valid, block in (("circle", world.circle_valid, BLOCK),
                                ("polygon", world.polygon_valid, POLYGON_BLOCK[collision])):
         slots = np.flatnonzero(np.asarray(valid))
-        one = np.full(block * max(1, -(-len(slots) // block)), len(valid), np.int32)
+        one = np.full(_whole_blocks(len(slots), block), len(valid), np.int32)
         one[:len(slots)] = slots
         lists[kind] = np.tile(one, (n_links, 1, 1, 1, 1))
         fields[f"{kind}_blocks"] = _used_blocks(lists[kind], len(valid), block)
@@ -339,7 +334,12 @@ def _list_length(per_link: list, block: int) -> int:
     rounded up to whole blocks (at least one)."""
     longest = max((int(np.bincount(cells).max(initial=0)) for per_bin in per_link
                    for cells, _ in per_bin), default=0)
-    return block * max(1, -(-longest // block))
+    return _whole_blocks(longest, block)
+
+
+def _whole_blocks(n_slots: int, block: int) -> int:
+    """``n_slots`` rounded up to whole blocks (at least one)."""
+    return block * max(1, -(-n_slots // block))
 
 
 def _padded(per_link: list, n_slots: int, block: int) -> np.ndarray:
@@ -369,6 +369,15 @@ def _used_blocks(lists: np.ndarray, n_slots: int, block: int) -> np.ndarray:
 # (``block_world``).
 _MASKED = {"circles": 1e4, "circle_valid": False, "vertices": 1e4, "normals": 0.0,
            "extent_low": 0.0, "extent_high": 0.0, "edge_valid": False, "polygon_valid": False}
+
+
+def _padding(arm_reach: float, reach: float = 0.0) -> dict:
+    """The numbers of a list's padding slot (``_listed_numbers``' ``empty``): a masked polygon,
+    and a circle of radius 0 farther from every point within the arm's reach than 1e4 cm plus
+    the tables' ``reach`` and the arm's length, so that no bound the checks take from it comes
+    near the reach."""
+    far = 1e4 + 2.0 * (arm_reach + reach)
+    return dict(_MASKED, circles=np.array([far, far, 0.0]))
 
 
 def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int,
@@ -427,10 +436,10 @@ def direction_bin(dx, dy, n_bins: int):
 
     The number of the bins' edges the direction, turned into the upper half plane, lies
     counter-clockwise of (the sign of a cross product each): a few multiplications, where
-    ``arctan2`` cost the broad phase more than reading its blocks of circles
-    (``benchmarks/RESULTS.md``, *Decisions and negative results*, "A link's direction bin by
-    cross products"). An angle within rounding of an edge may fall in either bin: the tables
-    widen each bin for that (``build``)."""
+    ``arctan2`` at every sample of every link cost about a quarter of the sampled check among
+    1,000 circles (``benchmarks/RESULTS.md``, *Decisions and negative results*, "A link's
+    direction bin by cross products"). An angle within rounding of an edge may fall in either
+    bin: the tables widen each bin for that (``build``)."""
     flip = dy < 0
     dx, dy = jnp.where(flip, -dx, dx), jnp.where(flip, -dy, dy)
     direction = jnp.zeros(jnp.shape(dx), jnp.int32)
@@ -468,7 +477,8 @@ def block_world(numbers: tuple, names: tuple, index) -> WorldArrays:
 
 def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_link=()):
     """The sum or minimum of ``value(block, per_link)`` over the blocks of slots listed in
-    ``cells`` (``near_cells``), each link paying for its own list's blocks alone.
+    ``cells`` (``near_cells``): with the grid's tables, each link paying for its own list's
+    blocks alone.
 
     Block by block (a ``lax.scan``). Tables that list every slot (``every_slot``): each block
     read once, its numbers broadcast against every link. Otherwise a block no link's list
@@ -476,8 +486,9 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
     links read is read by those alone, gathered in chunks of ``CHUNK`` links (a ``lax.scan``
     over as many as they can fill, each skipped past them by a ``lax.cond``; in batches of at
     least ``2 * CHUNK`` links); any other is read by every link, its padding included (which
-    adds 0 to a sum and stays above the tables' reach in a minimum). Under a ``jax.vmap`` that
-    batches ``cells`` (several problems), the branch is batched too, and every branch runs.
+    adds 0 to a sum and stays above the tables' reach, or every real slot, in a minimum).
+    Under a ``jax.vmap`` that batches ``cells`` (several problems), the branch is batched too,
+    and every branch runs.
 
     Args:
       tables: the world's ``NearTables``.
@@ -521,7 +532,8 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
         blocks_needed = jnp.asarray(blocks).at[cells].get(mode="promise_in_bounds")
 
         def every_slot_step(result, block, names=names, numbers=numbers, rows=rows):
-            row = jnp.asarray(rows)[block * n_lists]  # every list's block is the same
+            # every list's block is the same
+            row = jnp.asarray(rows).at[block * n_lists].get(mode="promise_in_bounds")
             return jax.tree.map(elementwise, result,
                                 value(block_world(numbers, names, row), per_link)), None
 
