@@ -486,7 +486,8 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
     links read is read by those alone, gathered in chunks of ``CHUNK`` links (a ``lax.scan``
     over as many as they can fill, each skipped past them by a ``lax.cond``; in batches of at
     least ``2 * CHUNK`` links); any other is read by every link, its padding included (which
-    adds 0 to a sum and stays above the tables' reach, or every real slot, in a minimum).
+    adds 0 to a sum and, in a minimum, stays above the tables' reach; with every slot listed,
+    it can only lower a lower bound).
     Under a ``jax.vmap`` that batches ``cells`` (several problems), the branch is batched too,
     and every branch runs.
 
