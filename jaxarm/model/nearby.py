@@ -174,7 +174,7 @@ def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> N
     slack = 1e-4 * arm_reach
     boxes = {"circles": _circle_boxes(world), "polygons": _polygon_boxes(world)}
     blocks = {"circles": BLOCK, "polygons": POLYGON_BLOCK[collision]}
-    pairs = {kind: [] for kind in boxes}
+    pairs, found = {kind: [] for kind in boxes}, {}
     for length in lengths:
         # Every point of a link whose midpoint is in the cell and whose direction is in the
         # bin lies within this of the segment through the cell's centre along the bin's
@@ -183,7 +183,9 @@ def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> N
         spread = half_diagonal + length * np.sin(0.5 * half_bin)
         widest = spread + reaches[-1] + slack
         for kind, (low, high) in boxes.items():
-            pairs[kind].append((length, spread, _near_pairs(centres, low, high, length, widest)))
+            if (kind, length) not in found:  # links of one length share their pairs
+                found[kind, length] = _near_pairs(centres, low, high, length, widest)
+            pairs[kind].append((length, spread, found[kind, length]))
 
     def pairs_at(reach: float) -> dict:
         return {kind: [_within(per_bin, length, spread + reach + slack)
@@ -348,13 +350,18 @@ def _padded(per_link: list, n_slots: int, block: int) -> np.ndarray:
     ascending, padded with ``n_slots`` (an empty slot)."""
     n_lists = GRID_CELLS * GRID_CELLS
     k = _list_length(per_link, block)
-    table = np.full((len(per_link), DIRECTION_BINS, n_lists, k), n_slots, np.int32)
+    table = np.full((len(per_link), DIRECTION_BINS * n_lists, k), n_slots, np.int32)
     for link, per_bin in enumerate(per_link):
-        for direction, (cells, slots) in enumerate(per_bin):
-            order = np.lexsort((slots, cells))
-            cells, slots = cells[order], slots[order]
-            first = np.searchsorted(cells, cells)  # the first pair of each one's cell
-            table[link, direction, cells, np.arange(len(cells)) - first] = slots
+        # Every bin's pairs at once: the list of bin d and cell c is d * n_lists + c.
+        lists = np.concatenate([direction * n_lists + cells
+                                for direction, (cells, _) in enumerate(per_bin)])
+        slots = np.concatenate([slots for _, slots in per_bin])
+        key = lists.astype(np.int64) * (n_slots + 1) + slots
+        if np.any(key[1:] < key[:-1]):  # ``_near_pairs`` finds them in order: rarely taken
+            order = np.argsort(key, kind="stable")
+            lists, slots = lists[order], slots[order]
+        first = np.searchsorted(lists, lists)  # the first pair of each one's list
+        table[link, lists, np.arange(len(lists)) - first] = slots
     return table.reshape(len(per_link), DIRECTION_BINS, GRID_CELLS, GRID_CELLS, k)
 
 
@@ -391,10 +398,7 @@ def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int
     blocks = np.moveaxis(lists.reshape(-1, n_blocks, block), 1, 0).reshape(-1, block)
     if not getattr(world, names[0]).shape[0]:
         return {f"{kind}_rows": np.zeros(len(blocks), np.int32), f"{kind}s": ()}
-    # Distinct blocks, each block's slots compared as one string of bytes (far faster than
-    # np.unique along an axis).
-    as_bytes = np.ascontiguousarray(blocks).view(np.dtype((np.void, 4 * block))).ravel()
-    _, first, rows = np.unique(as_bytes, return_index=True, return_inverse=True)
+    first, rows = _distinct_rows(blocks)
     distinct = blocks[first]
     numbers = []
     for name in names:
@@ -404,6 +408,29 @@ def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int
         values = np.concatenate([values, padding[None]])
         numbers.append(values[distinct])  # (n_rows, block, *data)
     return {f"{kind}_rows": rows.reshape(-1).astype(np.int32), f"{kind}s": tuple(numbers)}
+
+
+def _distinct_rows(blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct rows of ``blocks`` (int32, shape (n, block)), numbered in the order they
+    first appear: (the index of each one's first row, shape (n_distinct,); each row's number,
+    shape (n,)).
+
+    Each row is reduced to one 64-bit key (a sum of its slots times fixed odd weights,
+    wrapping around), which sorts far faster than the rows as strings of bytes; the rows are then
+    checked against their numbers' rows, and on a collision found the bytes are sorted
+    instead."""
+    weights = np.random.default_rng(0).integers(1, 2**62, blocks.shape[1], np.uint64) | 1
+    keys = np.zeros(len(blocks), np.uint64)
+    for column, weight in enumerate(weights):
+        keys += blocks[:, column].astype(np.uint64) * weight  # wraps around
+    _, first, rows = np.unique(keys, return_index=True, return_inverse=True)
+    if not np.array_equal(blocks[first][rows], blocks):
+        as_bytes = np.ascontiguousarray(blocks).view(np.dtype((np.void, 4 * blocks.shape[1])))
+        _, first, rows = np.unique(as_bytes.ravel(), return_index=True, return_inverse=True)
+    order = np.argsort(first)  # renumbered in order of first appearance
+    renumbered = np.empty_like(order)
+    renumbered[order] = np.arange(len(order))
+    return first[order], renumbered[rows.reshape(-1)]
 
 
 def cell_of(tables: NearTables, mid_x, mid_y):
