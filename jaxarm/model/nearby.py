@@ -546,12 +546,17 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
             continue
         gathers = kind in GATHERED and n_links >= 2 * CHUNK
 
-        def one_block(block, at=None, names=names, numbers=numbers, rows=rows):
+        def read_block(lists, own, block, names=names, numbers=numbers, rows=rows):
+            """``value`` of block ``block`` of ``lists`` (c, an int or of the links' shape)
+            at links whose own data are ``own``."""
+            row = jnp.asarray(rows).at[block * n_lists + lists].get(mode="promise_in_bounds")
+            return value(block_world(numbers, names, row), own)
+
+        def one_block(block, at=None, read_block=read_block):
             """``value`` of block ``block`` at links ``at`` (None: every link)."""
             cells_at, own = (cells, per_link) if at is None else jax.tree.map(
                 lambda a: a.at[at].get(mode="promise_in_bounds"), (cells, per_link))
-            row = jnp.asarray(rows).at[block * n_lists + cells_at].get(mode="promise_in_bounds")
-            return value(block_world(numbers, names, row), own)
+            return read_block(cells_at, own, block)
 
         if result is None:
             identity = {"add": 0.0, "min": jnp.inf}[combine]
@@ -559,11 +564,9 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
                                   jax.eval_shape(one_block, jnp.int32(0)))
         blocks_needed = jnp.asarray(blocks).at[cells].get(mode="promise_in_bounds")
 
-        def every_slot_step(result, block, names=names, numbers=numbers, rows=rows):
-            # every list's block is the same
-            row = jnp.asarray(rows).at[block * n_lists].get(mode="promise_in_bounds")
-            return jax.tree.map(elementwise, result,
-                                value(block_world(numbers, names, row), per_link)), None
+        def every_slot_step(result, block, read_block=read_block):
+            # every list's block is the same: list 0's, read once, broadcast to every link
+            return jax.tree.map(elementwise, result, read_block(0, per_link, block)), None
 
         def block_step(result, block, one_block=one_block, blocks_needed=blocks_needed,
                        gathers=gathers):
