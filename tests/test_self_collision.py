@@ -16,19 +16,14 @@ from jaxarm.model.arm import link_endpoints
 from jaxarm.testing import dense_clearance, oracle_path_collides, self_clearance
 
 
-def curling_chain(n_links: int) -> jaxarm.Problem:
-    """An arm of 20 cm links that curls, beside a wall: paths of its range cross its own
-    links often."""
-    bends = [1.0] * (n_links - 2)
+def curling_chain(n_links: int, bend: float = 1.0) -> jaxarm.Problem:
+    """An arm of 20 cm links that curls (``bend`` rad at each inner joint of its start),
+    beside a wall: paths of its range cross its own links often."""
+    bends = [bend] * (n_links - 2)
     return jaxarm.Problem(arm=jaxarm.Arm((20.0,) * n_links, self_collision=True),
                           start=[0.3, *bends, 0.5], goal=[1.2, *np.negative(bends), -0.5],
                           world=jaxarm.World(segments=[((40.0, -60.0), (90.0, -30.0))]),
                           init_low=-150.0, init_high=150.0)
-
-
-@pytest.fixture(scope="module")
-def chain():
-    return curling_chain(6)
 
 
 def test_a_posture_whose_links_cross_is_refused(tmp_path):
@@ -51,13 +46,16 @@ def test_a_posture_whose_links_cross_is_refused(tmp_path):
         jaxarm.load_scenario(path)
 
 
-@pytest.mark.parametrize("n_links, margin", [(4, 0.0), pytest.param(6, 0.0, marks=pytest.mark.slow),
-                                             pytest.param(6, 1.0, marks=pytest.mark.slow)])
-def test_no_path_called_free_brings_two_links_closer_than_the_margin(rng, n_links, margin):
+# 8 links: 21 pairs, on an array axis at the samples; its start curls less, not to cross
+@pytest.mark.parametrize("n_links, bend, margin", [
+    (4, 1.0, 0.0), pytest.param(6, 1.0, 0.0, marks=pytest.mark.slow),
+    pytest.param(6, 1.0, 1.0, marks=pytest.mark.slow),
+    pytest.param(8, 0.8, 0.0, marks=pytest.mark.slow)])
+def test_no_path_called_free_brings_two_links_closer_than_the_margin(rng, n_links, bend, margin):
     """Random paths of a curling chain: the certified check frees none whose links come
     within the margin of each other (or of the wall) at any of 20,001 instants, and finds
     colliding every one whose links cross at the oracle's 2,001."""
-    problem = curling_chain(n_links).replace(margin=margin)
+    problem = curling_chain(n_links, bend).replace(margin=margin)
     x = rng.uniform(-150, 150, (64, problem.n_free)).astype(np.float32)
     certificate = jaxarm.certify(problem, x)
     free, colliding = np.asarray(certificate.free), np.asarray(certificate.colliding)
@@ -70,8 +68,9 @@ def test_no_path_called_free_brings_two_links_closer_than_the_margin(rng, n_link
     assert np.all(closest >= margin - 1e-4), closest.min()
 
 
-def test_the_sampled_check_agrees_with_the_oracle_at_its_samples(chain, rng):
-    problem = chain.replace(collision="sampled")
+@pytest.mark.parametrize("n_links, bend", [(6, 1.0), (8, 0.8)])  # 10 pairs written out; 21 not
+def test_the_sampled_check_agrees_with_the_oracle_at_its_samples(n_links, bend, rng):
+    problem = curling_chain(n_links, bend).replace(collision="sampled")
     x = rng.uniform(-150, 150, (200, problem.n_free)).astype(np.float32)
     ours = np.asarray(jaxarm.violation(problem, x))
     oracle = (self_clearance(problem, x, problem.n_samples) < 0) | oracle_path_collides(
@@ -126,6 +125,25 @@ def test_a_postures_pairs_are_measured_as_shapely_measures_them(rng):
                 assert value == pytest.approx(a.distance(b), abs=1e-9)
             checked += 1
     assert checked == 2000
+
+
+def test_many_pairs_on_an_array_axis_are_each_pair_written_out(rng):
+    """Past ``UNROLLED_PAIRS`` pairs the separations are computed on an array axis: the values
+    of each pair written out (within a few float32 spacings: XLA rounds the two programs in
+    their own ways), and of the host's float64 measure."""
+    lengths = np.array([20.0, 15.0, 10.0, 12.0, 8.0, 20.0, 15.0, 10.0, 12.0])
+    checked = self_collision.pairs(len(lengths))
+    assert len(checked) > self_collision.UNROLLED_PAIRS
+    theta = rng.uniform(-2.8, 2.8, (512, len(lengths))).astype(np.float32)
+    together = jax.jit(lambda theta: jnp.stack(self_collision.pair_separations(
+        link_endpoints(lengths, theta))))(theta)
+    apart = jax.jit(lambda theta: jnp.stack([
+        self_collision.segment_separations(links[i], links[j])
+        for links in [link_endpoints(lengths, theta)] for i, j in checked]))(theta)
+    np.testing.assert_allclose(np.asarray(together), np.asarray(apart), rtol=0, atol=1e-4)
+    host = np.stack([self_collision.posture_pair_separations(lengths, row) for row in theta], 1)
+    assert np.abs(host).min() < 1.0 and (host < 0).any()  # near and crossing pairs among them
+    np.testing.assert_allclose(np.asarray(together), host, rtol=0, atol=1e-3)
 
 
 def test_collinear_links_are_apart_by_their_gap_in_float32():

@@ -23,6 +23,13 @@ from jaxarm.model.arm import link_endpoints
 from jaxarm.model.world import World, WorldArrays
 
 TESTED = slice(2, None)  # a frame's links tested against its wall: not the wall, nor its neighbour
+# Past this many pairs (an arm of 7 links and more), ``pair_separations`` computes every pair
+# at once, the pairs on an array axis: written out pair by pair, XLA fuses them with the rest
+# of a posture's check into one loop, which its CPU backend compiles to scalar code past a few
+# links, while an arm of 5 or 6 links ran several times faster written out
+# (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Many pairs of links on an
+# array axis").
+UNROLLED_PAIRS = 10
 
 
 def link_walls(lengths) -> WorldArrays:
@@ -103,9 +110,18 @@ def pair_separations(links: list, xp=jnp) -> list:
 
     Returns:
       A list of n_pairs arrays of shape (...,): pair by pair, elementwise over the batch, as
-      ``link_endpoints`` gives the links (a few operations per pair).
+      ``link_endpoints`` gives the links (a few operations per pair); past ``UNROLLED_PAIRS``
+      pairs (with ``jax.numpy``), the rows of one array of shape (n_pairs, ...), computed
+      with the pairs on its leading axis.
     """
-    return [segment_separations(links[i], links[j], xp) for i, j in pairs(len(links))]
+    checked = pairs(len(links))
+    if xp is np or len(checked) <= UNROLLED_PAIRS:
+        return [segment_separations(links[i], links[j], xp) for i, j in checked]
+    first, other = np.array(checked).T
+    coordinates = [jnp.stack(coordinate) for coordinate in zip(*links)]  # (n_links, ...)
+    # The barrier keeps the pairs' loop apart from what reads the separations.
+    return list(jax.lax.optimization_barrier(segment_separations(
+        tuple(c[first] for c in coordinates), tuple(c[other] for c in coordinates))))
 
 
 def segment_separations(p, q, xp=jnp):
