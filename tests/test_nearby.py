@@ -393,3 +393,37 @@ def test_a_start_colliding_in_a_large_world_names_the_obstacle(rng):
     with pytest.raises(ValueError, match=r"start posture .* overlaps circles\[77\]"):
         jaxarm.Problem(arm=ARM, start=[0.0, 0.0, 0.0], goal=[0.5, 0.0, 0.0],
                        world=jaxarm.World(circles=circles))
+
+
+def test_distinct_blocks_are_found_whether_their_keys_collide_or_not(rng):
+    """``_distinct_rows``: every distinct block once, numbered in order of first appearance,
+    the same when every key collides (the bytes sorted instead)."""
+    blocks = rng.integers(0, 4, (600, 3)).astype(np.int32)  # 64 possible rows: many repeats
+    first, rows = nearby._distinct_rows(blocks)
+    assert len(first) == len(np.unique(blocks, axis=0)) and np.all(np.diff(first) > 0)
+    np.testing.assert_array_equal(blocks[first][rows], blocks)
+    assert rows[0] == 0 and np.all(np.diff(np.maximum.accumulate(rows)) <= 1)
+    colliding = nearby._distinct_rows(blocks, weights=np.zeros(3, np.uint64))  # one key for all
+    np.testing.assert_array_equal(colliding[0], first)
+    np.testing.assert_array_equal(colliding[1], rows)
+
+
+def test_lists_are_filled_alike_from_pairs_in_any_order(rng):
+    """``_padded``: pairs in order of list and slot (as ``_near_pairs`` gives them) and the same
+    pairs shuffled fill the same lists, each list's slots ascending, padded with the count."""
+    n_lists, n_slots = nearby.GRID_CELLS ** 2, 50
+    per_bin = []
+    for _ in range(nearby.DIRECTION_BINS):
+        pairs = np.unique(np.stack([rng.integers(0, n_lists, 300),
+                                    rng.integers(0, n_slots, 300)], axis=1), axis=0)
+        per_bin.append((pairs[:, 0], pairs[:, 1]))
+    ordered = nearby._padded([per_bin], n_slots, nearby.BLOCK)
+    shuffled = [(cells[order], slots[order]) for cells, slots in per_bin
+                for order in [rng.permutation(len(cells))]]
+    np.testing.assert_array_equal(nearby._padded([shuffled], n_slots, nearby.BLOCK), ordered)
+    cells, slots = per_bin[3]
+    row, column = divmod(int(cells[0]), nearby.GRID_CELLS)
+    listed = ordered[0, 3, row, column]
+    expected = np.sort(slots[cells == cells[0]])
+    np.testing.assert_array_equal(listed[:len(expected)], expected)
+    assert np.all(listed[len(expected):] == n_slots)

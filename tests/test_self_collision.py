@@ -46,11 +46,11 @@ def test_a_posture_whose_links_cross_is_refused(tmp_path):
         jaxarm.load_scenario(path)
 
 
-# 8 links: 21 pairs, on an array axis at the samples; its start curls less, not to cross
+# 11 links: 45 pairs, on an array axis at the samples; its start curls less, not to cross
 @pytest.mark.parametrize("n_links, bend, margin", [
     (4, 1.0, 0.0), pytest.param(6, 1.0, 0.0, marks=pytest.mark.slow),
     pytest.param(6, 1.0, 1.0, marks=pytest.mark.slow),
-    pytest.param(8, 0.8, 0.0, marks=pytest.mark.slow)])
+    pytest.param(11, 0.3, 0.0, marks=pytest.mark.slow)])
 def test_no_path_called_free_brings_two_links_closer_than_the_margin(rng, n_links, bend, margin):
     """Random paths of a curling chain: the certified check frees none whose links come
     within the margin of each other (or of the wall) at any of 20,001 instants, and finds
@@ -68,7 +68,7 @@ def test_no_path_called_free_brings_two_links_closer_than_the_margin(rng, n_link
     assert np.all(closest >= margin - 1e-4), closest.min()
 
 
-@pytest.mark.parametrize("n_links, bend", [(6, 1.0), (8, 0.8)])  # 10 pairs written out; 21 not
+@pytest.mark.parametrize("n_links, bend", [(6, 1.0), (11, 0.3)])  # 10 pairs written out; 45 not
 def test_the_sampled_check_agrees_with_the_oracle_at_its_samples(n_links, bend, rng):
     problem = curling_chain(n_links, bend).replace(collision="sampled")
     x = rng.uniform(-150, 150, (200, problem.n_free)).astype(np.float32)
@@ -129,33 +129,46 @@ def test_a_postures_pairs_are_measured_as_shapely_measures_them(rng):
 
 def test_many_pairs_on_an_array_axis_are_each_pair_written_out(rng):
     """Past ``UNROLLED_PAIRS`` pairs the separations are computed on an array axis: the values
-    of each pair written out (within a few float32 spacings: XLA rounds the two programs in
-    their own ways), and of the host's float64 measure."""
-    lengths = np.array([20.0, 15.0, 10.0, 12.0, 8.0, 20.0, 15.0, 10.0, 12.0])
+    of each pair written out (within 1e-4 cm: XLA rounds the two programs in their own ways),
+    of the host's float64 measure, and under ``jax.vmap`` and ``jax.grad`` too."""
+    lengths = np.array([20.0, 15.0, 10.0, 12.0, 8.0, 20.0, 15.0, 10.0, 12.0, 8.0, 20.0])
     checked = self_collision.pairs(len(lengths))
     assert len(checked) > self_collision.UNROLLED_PAIRS
+
+    def on_an_axis(theta):
+        return jnp.stack(self_collision.pair_separations(link_endpoints(lengths, theta)))
+
+    def written_out(theta):
+        links = link_endpoints(lengths, theta)
+        return jnp.stack([self_collision.segment_separations(links[i], links[j])
+                          for i, j in checked])
+
     theta = rng.uniform(-2.8, 2.8, (512, len(lengths))).astype(np.float32)
-    together = jax.jit(lambda theta: jnp.stack(self_collision.pair_separations(
-        link_endpoints(lengths, theta))))(theta)
-    apart = jax.jit(lambda theta: jnp.stack([
-        self_collision.segment_separations(links[i], links[j])
-        for links in [link_endpoints(lengths, theta)] for i, j in checked]))(theta)
+    together, apart = jax.jit(on_an_axis)(theta), jax.jit(written_out)(theta)
     np.testing.assert_allclose(np.asarray(together), np.asarray(apart), rtol=0, atol=1e-4)
+    mapped = jax.vmap(on_an_axis)(theta[:8])  # (8, n_pairs)
+    np.testing.assert_allclose(np.asarray(mapped).T, np.asarray(together)[:, :8], atol=1e-4)
+    slopes = [jax.grad(lambda theta, f=f: jnp.sum(f(theta)))(theta[:8])
+              for f in (on_an_axis, written_out)]
+    assert np.all(np.isfinite(np.asarray(slopes[0])))
+    np.testing.assert_allclose(np.asarray(slopes[0]), np.asarray(slopes[1]), rtol=1e-3, atol=1e-3)
     host = np.stack([self_collision.posture_pair_separations(lengths, row) for row in theta], 1)
     assert np.abs(host).min() < 1.0 and (host < 0).any()  # near and crossing pairs among them
     np.testing.assert_allclose(np.asarray(together), host, rtol=0, atol=1e-3)
 
 
-def test_collinear_links_are_apart_by_their_gap_in_float32():
+@pytest.mark.parametrize("n_links", [5, 11])  # 6 pairs written out; 45 on an array axis
+def test_collinear_links_are_apart_by_their_gap_in_float32(n_links):
     """A straight chain turning, compiled on a batch: the sides of collinear links are rounding
     noise, which must not read as a crossing (shapely's distance)."""
-    lengths = np.array([20.0, 15.0, 10.0, 12.0, 8.0])
+    lengths = np.array([20.0, 15.0, 10.0, 12.0, 8.0, 20.0, 15.0, 10.0, 12.0, 8.0, 20.0][:n_links])
     turns = np.linspace(0.0, 1.0, 201, dtype=np.float32)
     separations = jax.jit(lambda turn: jnp.stack(self_collision.pair_separations(link_endpoints(
-        jnp.asarray(lengths, jnp.float32), [turn] + [jnp.zeros_like(turn)] * 4))))(turns)
+        jnp.asarray(lengths, jnp.float32), [turn] + [jnp.zeros_like(turn)] * (n_links - 1)))))(
+        turns)
     for turn, ours in zip(turns, np.asarray(separations).T):
-        links = _links(lengths, [float(turn), 0.0, 0.0, 0.0, 0.0])
-        for (i, j), value in zip(self_collision.pairs(5), ours):
+        links = _links(lengths, [float(turn)] + [0.0] * (n_links - 1))
+        for (i, j), value in zip(self_collision.pairs(n_links), ours):
             a, b = shapely.LineString(links[i]), shapely.LineString(links[j])
             assert value == pytest.approx(a.distance(b), abs=1e-3), (turn, i, j)
 

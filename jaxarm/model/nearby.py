@@ -174,7 +174,7 @@ def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> N
     slack = 1e-4 * arm_reach
     boxes = {"circles": _circle_boxes(world), "polygons": _polygon_boxes(world)}
     blocks = {"circles": BLOCK, "polygons": POLYGON_BLOCK[collision]}
-    pairs, found = {kind: [] for kind in boxes}, {}
+    pairs, pairs_by_length = {kind: [] for kind in boxes}, {}
     for length in lengths:
         # Every point of a link whose midpoint is in the cell and whose direction is in the
         # bin lies within this of the segment through the cell's centre along the bin's
@@ -183,9 +183,9 @@ def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> N
         spread = half_diagonal + length * np.sin(0.5 * half_bin)
         widest = spread + reaches[-1] + slack
         for kind, (low, high) in boxes.items():
-            if (kind, length) not in found:  # links of one length share their pairs
-                found[kind, length] = _near_pairs(centres, low, high, length, widest)
-            pairs[kind].append((length, spread, found[kind, length]))
+            if (kind, length) not in pairs_by_length:  # links of one length share them
+                pairs_by_length[kind, length] = _near_pairs(centres, low, high, length, widest)
+            pairs[kind].append((length, spread, pairs_by_length[kind, length]))
 
     def pairs_at(reach: float) -> dict:
         return {kind: [_within(per_bin, length, spread + reach + slack)
@@ -357,7 +357,7 @@ def _padded(per_link: list, n_slots: int, block: int) -> np.ndarray:
                                 for direction, (cells, _) in enumerate(per_bin)])
         slots = np.concatenate([slots for _, slots in per_bin])
         key = lists.astype(np.int64) * (n_slots + 1) + slots
-        if np.any(key[1:] < key[:-1]):  # ``_near_pairs`` finds them in order: rarely taken
+        if np.any(key[1:] < key[:-1]):  # a guard: ``_near_pairs`` gives them in this order
             order = np.argsort(key, kind="stable")
             lists, slots = lists[order], slots[order]
         first = np.searchsorted(lists, lists)  # the first pair of each one's list
@@ -410,22 +410,24 @@ def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int
     return {f"{kind}_rows": rows.reshape(-1).astype(np.int32), f"{kind}s": tuple(numbers)}
 
 
-def _distinct_rows(blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _distinct_rows(blocks: np.ndarray, weights=None) -> tuple[np.ndarray, np.ndarray]:
     """The distinct rows of ``blocks`` (int32, shape (n, block)), numbered in the order they
     first appear: (the index of each one's first row, shape (n_distinct,); each row's number,
     shape (n,)).
 
     Each row is reduced to one 64-bit key (a sum of its slots times fixed odd weights,
-    wrapping around), which sorts far faster than the rows as strings of bytes; the rows are then
-    checked against their numbers' rows, and on a collision found the bytes are sorted
-    instead."""
-    weights = np.random.default_rng(0).integers(1, 2**62, blocks.shape[1], np.uint64) | 1
+    wrapping around), which sorts far faster than the rows as strings of bytes; each row is then
+    compared with the first row of its key, and where two rows share a key the bytes are
+    sorted instead. ``weights``: the keys' weights (tests force collisions with them)."""
+    if weights is None:
+        weights = np.random.default_rng(0).integers(1, 2**63, blocks.shape[1], np.uint64) | 1
     keys = np.zeros(len(blocks), np.uint64)
     for column, weight in enumerate(weights):
         keys += blocks[:, column].astype(np.uint64) * weight  # wraps around
     _, first, rows = np.unique(keys, return_index=True, return_inverse=True)
     if not np.array_equal(blocks[first][rows], blocks):
-        as_bytes = np.ascontiguousarray(blocks).view(np.dtype((np.void, 4 * blocks.shape[1])))
+        width = blocks.itemsize * blocks.shape[1]
+        as_bytes = np.ascontiguousarray(blocks).view(np.dtype((np.void, width)))
         _, first, rows = np.unique(as_bytes.ravel(), return_index=True, return_inverse=True)
     order = np.argsort(first)  # renumbered in order of first appearance
     renumbered = np.empty_like(order)
@@ -514,9 +516,8 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
     over as many as they can fill, each skipped past them by a ``lax.cond``; in batches of at
     least ``2 * CHUNK`` links); any other is read by every link, its padding included (which
     adds 0 to a sum and, in a minimum, stays above the tables' reach; with every slot listed,
-    it can only lower a lower bound).
-    Under a ``jax.vmap`` that batches ``cells`` (several problems), the branch is batched too,
-    and every branch runs.
+    it can only lower a lower bound). Under a ``jax.vmap`` that batches ``cells`` (several
+    problems), the branch is batched too, and every branch runs.
 
     Args:
       tables: the world's ``NearTables``.
@@ -546,17 +547,16 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
             continue
         gathers = kind in GATHERED and n_links >= 2 * CHUNK
 
-        def read_block(lists, own, block, names=names, numbers=numbers, rows=rows):
-            """``value`` of block ``block`` of ``lists`` (c, an int or of the links' shape)
-            at links whose own data are ``own``."""
-            row = jnp.asarray(rows).at[block * n_lists + lists].get(mode="promise_in_bounds")
+        def read_block(block, cells, own, names=names, numbers=numbers, rows=rows):
+            """``value`` of block ``block`` of lists ``cells`` (an int, or links') at ``own``."""
+            row = jnp.asarray(rows).at[block * n_lists + cells].get(mode="promise_in_bounds")
             return value(block_world(numbers, names, row), own)
 
         def one_block(block, at=None, read_block=read_block):
             """``value`` of block ``block`` at links ``at`` (None: every link)."""
             cells_at, own = (cells, per_link) if at is None else jax.tree.map(
                 lambda a: a.at[at].get(mode="promise_in_bounds"), (cells, per_link))
-            return read_block(cells_at, own, block)
+            return read_block(block, cells_at, own)
 
         if result is None:
             identity = {"add": 0.0, "min": jnp.inf}[combine]
@@ -566,12 +566,13 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
 
         def every_slot_step(result, block, read_block=read_block):
             # every list's block is the same: list 0's, read once, broadcast to every link
-            return jax.tree.map(elementwise, result, read_block(0, per_link, block)), None
+            return jax.tree.map(elementwise, result, read_block(block, 0, per_link)), None
 
         def block_step(result, block, one_block=one_block, blocks_needed=blocks_needed,
                        gathers=gathers):
             reads = blocks_needed > block
             count = jnp.sum(reads, dtype=jnp.int32)
+            skip = lambda result: result  # noqa: E731
 
             def every_link(result):
                 return jax.tree.map(elementwise, result, one_block(block))
@@ -587,13 +588,11 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
                         values = one_block(block, jnp.minimum(at, n_links - 1))
                         return jax.tree.map(lambda r, v: _combined_at(r, at, v, combine),
                                             result, values)
-                    return jax.lax.cond(first < count, read, lambda result: result,
-                                        result), None
+                    return jax.lax.cond(first < count, read, skip, result), None
 
                 firsts = jnp.arange(n_chunks, dtype=jnp.int32) * CHUNK
                 return jax.lax.scan(one_chunk, result, firsts)[0]
 
-            skip = lambda result: result  # noqa: E731
             if not gathers:
                 return jax.lax.switch(jnp.where(count > 0, 1, 0), [skip, every_link],
                                       result), None

@@ -8,7 +8,9 @@ joint angle is 0 and whose other joints are the arm's. Each link i = 0 .. n - 3 
 3, ... tested as any link is tested against obstacles. So every bound of both checks holds for
 the pairs as it holds for obstacles, with the motion of the later link relative to the earlier
 one, which is slower than either's own. The certified check's bounds take the frames on an
-array axis (``over_pairs``): traced once for every pair, not once per pair.
+array axis (``over_pairs``): traced once for every pair, not once per pair. At a posture each
+pair is measured directly, segment against segment: pair by pair, or past ``UNROLLED_PAIRS``
+every pair at once on an array axis (``pair_separations``).
 """
 
 from __future__ import annotations
@@ -23,13 +25,13 @@ from jaxarm.model.arm import link_endpoints
 from jaxarm.model.world import World, WorldArrays
 
 TESTED = slice(2, None)  # a frame's links tested against its wall: not the wall, nor its neighbour
-# Past this many pairs (an arm of 7 links and more), ``pair_separations`` computes every pair
+# Past this many pairs (an arm of 11 links and more), ``pair_separations`` computes every pair
 # at once, the pairs on an array axis: written out pair by pair, XLA fuses them with the rest
 # of a posture's check into one loop, which its CPU backend compiles to scalar code past a few
-# links, while an arm of 5 or 6 links ran several times faster written out
+# dozen pairs, while arms of up to 10 links ran faster written out beside one wall
 # (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Many pairs of links on an
 # array axis").
-UNROLLED_PAIRS = 10
+UNROLLED_PAIRS = 36
 
 
 def link_walls(lengths) -> WorldArrays:
@@ -118,7 +120,8 @@ def pair_separations(links: list, xp=jnp) -> list:
     if xp is np or len(checked) <= UNROLLED_PAIRS:
         return [segment_separations(links[i], links[j], xp) for i, j in checked]
     first, other = np.array(checked).T
-    coordinates = [jnp.stack(coordinate) for coordinate in zip(*links)]  # (n_links, ...)
+    coordinates = [jnp.stack(jnp.broadcast_arrays(*coordinate))  # (n_links, ...)
+                   for coordinate in zip(*links)]
     # The barrier keeps the pairs' loop apart from what reads the separations.
     return list(jax.lax.optimization_barrier(segment_separations(
         tuple(c[first] for c in coordinates), tuple(c[other] for c in coordinates))))
@@ -163,7 +166,7 @@ def pairs(n_joints: int) -> list[tuple[int, int]]:
 
 
 def posture_pair_separations(lengths, theta) -> np.ndarray:
-    """``pair_separations`` of one posture on the host (float64 NumPy, every pair at once):
+    """``pair_separations`` of one posture on the host (float64 NumPy, pair by pair):
     what ``Problem`` checks a start or goal posture with, at a cost that does not grow with a
     compiled program's size. Shape (n_pairs,), ``pairs``' order."""
     absolute = np.cumsum(np.asarray(theta, np.float64))
