@@ -27,8 +27,8 @@ from jaxarm.model.world import World, WorldArrays
 TESTED = slice(2, None)  # a frame's links tested against its wall: not the wall, nor its neighbour
 # Past this many pairs (an arm of 11 links and more), ``pair_separations`` computes every pair
 # at once, the pairs on an array axis: written out pair by pair, XLA fuses them with the rest
-# of a posture's check into one loop, which its CPU backend compiles to scalar code past a few
-# dozen pairs, while arms of up to 10 links ran faster written out beside one wall
+# of a posture's check into one loop, scalar code on its CPU backend at 171 pairs and several
+# times slower from 45 pairs on, while arms of up to 10 links ran faster written out beside a wall
 # (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Many pairs of links on an
 # array axis").
 UNROLLED_PAIRS = 36
