@@ -411,19 +411,17 @@ def test_distinct_blocks_are_found_whether_their_keys_collide_or_not(rng):
 def test_lists_are_filled_alike_from_pairs_in_any_order(rng):
     """``_padded``: pairs in order of list and slot (as ``_near_pairs`` gives them) and the same
     pairs shuffled fill the same lists, each list's slots ascending, padded with the count."""
-    n_lists, n_slots = nearby.GRID_CELLS ** 2, 50
-    per_bin = []
-    for _ in range(nearby.DIRECTION_BINS):
-        pairs = np.unique(np.stack([rng.integers(0, n_lists, 300),
-                                    rng.integers(0, n_slots, 300)], axis=1), axis=0)
-        per_bin.append((pairs[:, 0], pairs[:, 1]))
-    ordered = nearby._padded([per_bin], n_slots, nearby.BLOCK)
-    shuffled = [(cells[order], slots[order]) for cells, slots in per_bin
-                for order in [rng.permutation(len(cells))]]
-    np.testing.assert_array_equal(nearby._padded([shuffled], n_slots, nearby.BLOCK), ordered)
-    cells, slots = per_bin[3]
-    row, column = divmod(int(cells[0]), nearby.GRID_CELLS)
-    listed = ordered[0, 3, row, column]
-    expected = np.sort(slots[cells == cells[0]])
+    n_cells, n_slots = nearby.GRID_CELLS ** 2, 50
+    pairs = np.unique(np.stack([rng.integers(0, nearby.DIRECTION_BINS * n_cells, 4800),
+                                rng.integers(0, n_slots, 4800)], axis=1), axis=0)
+    lists, slots = pairs[:, 0], pairs[:, 1]
+    ordered = nearby._padded([(lists, slots)], n_slots, nearby.BLOCK)
+    order = rng.permutation(len(lists))
+    np.testing.assert_array_equal(
+        nearby._padded([(lists[order], slots[order])], n_slots, nearby.BLOCK), ordered)
+    direction, cell = divmod(int(lists[0]), n_cells)
+    row, column = divmod(cell, nearby.GRID_CELLS)
+    listed = ordered[0, direction, row, column]
+    expected = np.sort(slots[lists == lists[0]])
     np.testing.assert_array_equal(listed[:len(expected)], expected)
     assert np.all(listed[len(expected):] == n_slots)

@@ -174,23 +174,19 @@ def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> N
     slack = 1e-4 * arm_reach
     boxes = {"circles": _circle_boxes(world), "polygons": _polygon_boxes(world)}
     blocks = {"circles": BLOCK, "polygons": POLYGON_BLOCK[collision]}
-    pairs, pairs_by_length = {kind: [] for kind in boxes}, {}
-    for length in lengths:
-        # Every point of a link whose midpoint is in the cell and whose direction is in the
-        # bin lies within this of the segment through the cell's centre along the bin's
-        # middle direction (a turn by at most half_bin moves a point at t from the
-        # midpoint by 2 |t| sin(half_bin / 2)), plus the reach.
-        spread = half_diagonal + length * np.sin(0.5 * half_bin)
-        widest = spread + reaches[-1] + slack
-        for kind, (low, high) in boxes.items():
-            if (kind, length) not in pairs_by_length:  # links of one length share them
-                pairs_by_length[kind, length] = _near_pairs(centres, low, high, length, widest)
-            pairs[kind].append((length, spread, pairs_by_length[kind, length]))
+    # Every point of a link whose midpoint is in the cell and whose direction is in the bin
+    # lies within this of the segment through the cell's centre along the bin's middle
+    # direction (a turn by at most half_bin moves a point at t from the midpoint by
+    # 2 |t| sin(half_bin / 2)), plus the reach. Links of one length share their pairs.
+    spreads = {length: half_diagonal + length * np.sin(0.5 * half_bin) for length in lengths}
+    pairs = {(kind, length): _near_pairs(centres, low, high, length,
+                                         spread + reaches[-1] + slack)
+             for kind, (low, high) in boxes.items() for length, spread in spreads.items()}
 
     def pairs_at(reach: float) -> dict:
-        return {kind: [_within(per_bin, length, spread + reach + slack)
-                       for length, spread, per_bin in per_link]
-                for kind, per_link in pairs.items()}
+        kept = {(kind, length): _within(found, length, spreads[length] + reach + slack)
+                for (kind, length), found in pairs.items()}
+        return {kind: [kept[kind, length] for length in lengths] for kind in boxes}
 
     def list_blocks(kept: dict) -> tuple:
         return tuple(_list_length(kept[kind], blocks[kind]) for kind in boxes)
@@ -269,18 +265,26 @@ def _only_valid(low, high, valid):
     return low, high
 
 
-def _near_pairs(centres, low, high, length, width) -> list:
-    """Per direction bin, the (cell, slot) pairs of the slots whose box comes within ``width``
-    of the segment of ``length`` through the cell's centre along the bin's middle direction,
-    by the largest gap of their projections on four axes (x, y and the segment's direction and
-    normal: each a lower bound on the distance) and by the box's distance from the centre
-    (within length / 2 + width): a list of ``DIRECTION_BINS`` tuples of arrays (cell = row *
-    n_cells + column, slot, the largest gap (cm), the squared distance from the centre (cm^2)),
-    so that the lists of a smaller width are these pairs filtered."""
+class _Pairs(NamedTuple):
+    """(list, slot) pairs of one link length, in order of list then slot: a list is
+    bin * n_cells**2 + cell (cell = row * n_cells + column), each pair with the largest gap
+    of the slot's box from the segment along its four axes (cm) and the box's squared
+    distance from the cell's centre (cm^2), so that the lists of a smaller width are these
+    pairs filtered (``_within``). Shapes (n_pairs,)."""
+
+    lists: np.ndarray
+    slots: np.ndarray
+    gaps: np.ndarray
+    centre_squared: np.ndarray
+
+
+def _near_pairs(centres, low, high, length, width) -> _Pairs:
+    """The (list, slot) pairs of the slots whose box comes within ``width`` of the segment
+    of ``length`` through the cell's centre along the bin's middle direction, by the largest
+    gap of their projections on four axes (x, y and the segment's direction and normal: each
+    a lower bound on the distance) and by the box's distance from the centre (within
+    length / 2 + width)."""
     n_cells = len(centres)
-    if not len(low):
-        return [(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
-                ] * DIRECTION_BINS
     # Candidates: within length / 2 + width of the centre, whatever the direction.
     gap_x = np.maximum(np.maximum(low[None, :, 0] - centres[:, None],
                                   centres[:, None] - high[None, :, 0]), 0.0)  # (n_cells, n)
@@ -296,46 +300,53 @@ def _near_pairs(centres, low, high, length, width) -> list:
         centre_squared.append(squared[column, slot])
     cells, slots, centre_squared = map(np.concatenate, (cells, slots, centre_squared))
     # Each pair's box relative to its cell's centre, and the box's gaps along x and y.
-    centre = np.stack([centres[cells % n_cells], centres[cells // n_cells]], axis=-1)
-    low, high = low[slots] - centre, high[slots] - centre  # (pairs, 2)
-    along_x = np.maximum(low[:, 0], -high[:, 0])
-    along_y = np.maximum(low[:, 1], -high[:, 1])
-    per_bin = []
+    x, y = centres[cells % n_cells], centres[cells // n_cells]
+    box = (low[slots, 0] - x, low[slots, 1] - y, high[slots, 0] - x, high[slots, 1] - y)
+    along_x = np.maximum(box[0], -box[2])
+    along_y = np.maximum(box[1], -box[3])
+    # One bin at a time, in place: arrays of one bin's candidates stay in cache.
+    gaps, scratch = np.empty_like(along_x), np.empty((2, len(along_x)))
+    found = []
     for direction in (np.arange(DIRECTION_BINS) + 0.5) * (np.pi / DIRECTION_BINS):
         cos, sin = np.cos(direction), np.sin(direction)
-        gaps = np.max([along_x - 0.5 * length * abs(cos), along_y - 0.5 * length * abs(sin),
-                       _projection_gap(low, high, cos, sin) - 0.5 * length,
-                       _projection_gap(low, high, -sin, cos)], axis=0)
-        near = gaps <= width
-        per_bin.append((cells[near], slots[near], gaps[near], centre_squared[near]))
-    return per_bin
+        np.subtract(along_x, 0.5 * length * abs(cos), out=gaps)
+        np.maximum(gaps, along_y - 0.5 * length * abs(sin), out=gaps)
+        gap = _projection_gap(box, cos, sin, scratch)
+        np.maximum(gaps, np.subtract(gap, 0.5 * length, out=gap), out=gaps)
+        np.maximum(gaps, _projection_gap(box, -sin, cos, scratch), out=gaps)
+        pair = np.flatnonzero(gaps <= width)
+        found.append((np.full(len(pair), len(found)), pair, gaps[pair]))
+    in_bin, pair, gaps = map(np.concatenate, zip(*found))
+    return _Pairs(lists=in_bin * n_cells * n_cells + cells[pair], slots=slots[pair], gaps=gaps,
+                  centre_squared=centre_squared[pair])
 
 
-def _within(per_bin: list, length: float, width: float) -> list:
-    """One link's ``_near_pairs`` (found within a larger width) within ``width``: per bin,
-    (cells, slots)."""
+def _within(pairs: _Pairs, length: float, width: float) -> tuple[np.ndarray, np.ndarray]:
+    """One link's ``_near_pairs`` (found within a larger width) within ``width``:
+    (lists, slots), in the same order."""
     radius = 0.5 * length + width
-    kept = []
-    for cells, slots, gaps, centre_squared in per_bin:
-        near = (gaps <= width) & (centre_squared <= radius * radius)
-        kept.append((cells[near], slots[near]))
-    return kept
+    near = (pairs.gaps <= width) & (pairs.centre_squared <= radius * radius)
+    return pairs.lists[near], pairs.slots[near]
 
 
-def _projection_gap(low, high, axis_x, axis_y):
-    """How far boxes (``low``, ``high``, each of shape (n, 2), relative to a point) lie from
-    that point along the unit axis (axis_x, axis_y): the gap between their projections on it
-    (<= 0 where a box's projection covers the point's)."""
-    x_low, x_high = (low[:, 0], high[:, 0]) if axis_x >= 0 else (high[:, 0], low[:, 0])
-    y_low, y_high = (low[:, 1], high[:, 1]) if axis_y >= 0 else (high[:, 1], low[:, 1])
-    return np.maximum(x_low * axis_x + y_low * axis_y, -(x_high * axis_x + y_high * axis_y))
+def _projection_gap(box, axis_x, axis_y, scratch):
+    """How far boxes (``box``: x_low, y_low, x_high, y_high relative to a point, each of
+    shape (n,)) lie from that point along the unit axis (axis_x, axis_y): the gap between
+    their projections on it (<= 0 where a box's projection covers the point's), in
+    ``scratch[0]`` (``scratch``: shape (2, n), overwritten)."""
+    x_low, y_low, x_high, y_high = box
+    x_low, x_high = (x_low, x_high) if axis_x >= 0 else (x_high, x_low)
+    y_low, y_high = (y_low, y_high) if axis_y >= 0 else (y_high, y_low)
+    first, last = scratch
+    np.add(np.multiply(x_low, axis_x, out=first), y_low * axis_y, out=first)
+    np.add(np.multiply(x_high, axis_x, out=last), y_high * axis_y, out=last)
+    return np.maximum(first, np.negative(last, out=last), out=first)
 
 
 def _list_length(per_link: list, block: int) -> int:
-    """The slots of the longest list (per link, per bin, the (cells, slots) of ``_within``),
-    rounded up to whole blocks (at least one)."""
-    longest = max((int(np.bincount(cells).max(initial=0)) for per_bin in per_link
-                   for cells, _ in per_bin), default=0)
+    """The slots of the longest list (per link, the (lists, slots) of ``_within``), rounded up
+    to whole blocks (at least one)."""
+    longest = max((int(np.bincount(lists).max(initial=0)) for lists, _ in per_link), default=0)
     return _whole_blocks(longest, block)
 
 
@@ -345,22 +356,19 @@ def _whole_blocks(n_slots: int, block: int) -> int:
 
 
 def _padded(per_link: list, n_slots: int, block: int) -> np.ndarray:
-    """Lists (per link, per bin, the (cells, slots) of ``_within``) as one int32 array
+    """Lists (per link, the (lists, slots) of ``_within``) as one int32 array
     (n_links, DIRECTION_BINS, n_cells, n_cells, k), k = ``_list_length``, each list's slots
     ascending, padded with ``n_slots`` (an empty slot)."""
-    n_lists = GRID_CELLS * GRID_CELLS
+    n_lists = DIRECTION_BINS * GRID_CELLS * GRID_CELLS
     k = _list_length(per_link, block)
-    table = np.full((len(per_link), DIRECTION_BINS * n_lists, k), n_slots, np.int32)
-    for link, per_bin in enumerate(per_link):
-        # Every bin's pairs at once: the list of bin d and cell c is d * n_lists + c.
-        lists = np.concatenate([direction * n_lists + cells
-                                for direction, (cells, _) in enumerate(per_bin)])
-        slots = np.concatenate([slots for _, slots in per_bin])
+    table = np.full((len(per_link), n_lists, k), n_slots, np.int32)
+    for link, (lists, slots) in enumerate(per_link):
         key = lists.astype(np.int64) * (n_slots + 1) + slots
         if np.any(key[1:] < key[:-1]):  # a guard: ``_near_pairs`` gives them in this order
             order = np.argsort(key, kind="stable")
             lists, slots = lists[order], slots[order]
-        first = np.searchsorted(lists, lists)  # the first pair of each one's list
+        starts = np.flatnonzero(np.diff(lists, prepend=-1))  # where each list's pairs start
+        first = np.repeat(starts, np.diff(starts, append=len(lists)))
         table[link, lists, np.arange(len(lists)) - first] = slots
     return table.reshape(len(per_link), DIRECTION_BINS, GRID_CELLS, GRID_CELLS, k)
 
