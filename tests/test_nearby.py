@@ -395,6 +395,25 @@ def test_a_start_colliding_in_a_large_world_names_the_obstacle(rng):
                        world=jaxarm.World(circles=circles))
 
 
+def test_a_problems_arrays_are_placed_on_the_device_once_with_the_same_bits(rng):
+    """``Problem.device_arrays``: the same placed arrays at every call (a world's tables are
+    not copied to the device at each), of the types a compiled call gives the host's, and
+    the check's bits from either."""
+    from jaxarm.checks.evaluate import _evaluate_and_certify
+
+    problem = corridor_problem(rng, nearby.BROAD_PHASE_WORK + 1, "circles", collision="sampled")
+    placed = problem.device_arrays()
+    assert placed is problem.device_arrays()
+    host, device = jax.tree.leaves(problem.arrays), jax.tree.leaves(placed)
+    assert len(host) == len(device) and all(isinstance(a, jax.Array) for a in device)
+    assert [jax.typeof(a) for a in host] == [jax.typeof(a) for a in device]
+    x = rng.uniform(-60, 60, (64, problem.n_free)).astype(np.float32)
+    for a, b in zip(_evaluate_and_certify(problem.spec, problem.arrays, x)[0],
+                    _evaluate_and_certify(problem.spec, placed, x)[0]):
+        np.testing.assert_array_equal(a, b)
+    assert problem.replace(margin=0.5).device_arrays() is not placed
+
+
 def test_distinct_blocks_are_found_whether_their_keys_collide_or_not(rng):
     """``_distinct_rows``: every distinct block once, numbered in order of first appearance,
     the same when every key collides (the bytes sorted instead)."""

@@ -242,7 +242,8 @@ def evaluate_paths(problem: Problem, x) -> Evaluation:
 def _evaluated(problem: Problem, x) -> Evaluation:
     """``evaluate`` of x (..., n_free) in one of a few compiled programs per problem spec (a
     nested ``jax.jit`` inside a caller's trace)."""
-    return on_padded_rows(functools.partial(_evaluate_and_certify, problem.spec, problem.arrays),
+    return on_padded_rows(functools.partial(_evaluate_and_certify, problem.spec,
+                                            problem.device_arrays()),
                           as_params(problem, x))[0]
 
 
@@ -338,7 +339,8 @@ def _certified_with_witness(problem: Problem, x) -> tuple[Certificate, witness_l
     """``certify`` of x, and its witness with the distance there (``collision_witness``)."""
     spec = problem.spec._replace(collision="certified")
     x = as_params(problem, x)
-    certificate = on_padded_rows(functools.partial(_evaluate_and_certify, spec, problem.arrays),
+    certificate = on_padded_rows(functools.partial(_evaluate_and_certify, spec,
+                                                   problem.device_arrays()),
                                  x)[1]
     found = witness_lib.contacts(problem, x, certificate.witness_r)
     return certificate._replace(witness_link=found.link, witness_obstacle=found.obstacle,
@@ -370,7 +372,7 @@ def collision_witness(problem: Problem, x) -> witness_lib.Witness:
         return _certified_with_witness(problem, x)[1]
     x = as_params(problem, x)
     r = on_padded_rows(functools.partial(witness_lib.deepest_sample_rows, problem.spec,
-                                         problem.arrays), x)
+                                         problem.device_arrays()), x)
     return witness_lib.contacts(problem, x, r)
 
 

@@ -119,7 +119,8 @@ def clearance_along(problem: Problem, x, r):
       none).
     """
     theta = joint_path(problem, x, r)
-    distance, slot, other = _link_distances(problem.arrays.lengths, problem.arrays.world, theta)
+    arrays = problem.device_arrays()
+    distance, slot, other = _link_distances(arrays.lengths, arrays.world, theta)
     return np.asarray(distance), obstacle_index(problem, np.asarray(slot)), np.asarray(other)
 
 
@@ -144,7 +145,7 @@ def contacts(problem: Problem, x, r) -> Witness:
     (...,; NaN: none, then -1 and NaN), as a ``Witness``. Given on the host, only the paths
     with an instant are computed."""
     x = as_params(problem, x)
-    kernel = functools.partial(_contact_rows, problem.degree, problem.arrays)
+    kernel = functools.partial(_contact_rows, problem.degree, problem.device_arrays())
     if isinstance(x, jax.core.Tracer) or isinstance(r, jax.core.Tracer):
         r = jnp.broadcast_to(jnp.asarray(r, x.dtype), x.shape[:-1])
         link, slot, distance, other = on_padded_rows(kernel,

@@ -312,6 +312,18 @@ class Problem:
                                     else [(-np.inf, np.inf)] * self.n_joints),
         )
 
+    def device_arrays(self) -> ProblemArrays:
+        """``arrays`` on JAX's default device, placed once per setting of ``jax_enable_x64``:
+        a compiled call given NumPy arrays copies them to the device at every call (the near
+        tables of a world of 1,000 circles are about 40 MB), converted as
+        ``jax.device_put`` converts them (float64 to float32 unless x64 is on), so either
+        gives the same bits. For the package's compiled calls from the host."""
+        placed = self.__dict__.setdefault("_device_arrays", {})  # frozen: no __setattr__
+        x64 = bool(jax.config.jax_enable_x64)
+        if x64 not in placed:
+            placed[x64] = jax.device_put(self.arrays)
+        return placed[x64]
+
     def _packed_world(self) -> WorldArrays:
         """The world packed at the problem's capacities, with near tables for this arm and
         margin when it is large (``jaxarm.model.nearby``)."""

@@ -217,7 +217,7 @@ def refine(problem: Problem, x, n_steps: int = 200, optimizer=None, barrier_weig
     # Padded to a few batch sizes (>= 16 rows): a few compiled programs per problem shape,
     # whatever the batch size, in one vectorised call.
     out = on_padded_rows(
-        lambda rows: _compiled_refine(problem.spec, problem.arrays, rows, optimizer,
+        lambda rows: _compiled_refine(problem.spec, problem.device_arrays(), rows, optimizer,
                                       int(n_steps), barrier_weight, margin, temperature),
         x, smallest=REFINE_BLOCK)
     return RefineResult(*(np.asarray(a) for a in out))

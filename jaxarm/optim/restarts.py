@@ -272,8 +272,8 @@ def run_restarts(problem: Problem, config: pso.PSOConfig | evosax_adapter.Strate
         given[:n_given] = init_particles
     data = SearchData(low, high, np.int32(seed), restart_ids(first_restart, n_restarts), given,
                       np.int32(n_given), np.int32(constraint_index(constraint)))
-    outcome = compiled_search(problem.spec, problem.arrays, config.params(), config.rules(),
-                              data, n_particles=n_particles, n_iters=n_iters,
+    outcome = compiled_search(problem.spec, problem.device_arrays(), config.params(),
+                              config.rules(), data, n_particles=n_particles, n_iters=n_iters,
                               xla_default_level=compiles_best_at_default_level(problem.spec))
     _RUN_PROGRAMS.add(_program_key(problem, config, n_particles, n_iters, n_restarts))
     return RestartOutcome(*(to_host(a)[:n_restarts] for a in outcome))
