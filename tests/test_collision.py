@@ -366,3 +366,68 @@ def test_a_link_turning_beside_an_obstacle_is_proved_where_its_hull_overlaps_it(
     with_line = float(hull.hull_separation(world, corners, patch=patch))
     assert hull_alone < 0 < with_line <= gap + 1e-5
     assert with_line > 0.95 * gap
+
+
+def chain_among_walls(n_links: int, n_walls: int, rng, margin: float = 0.0) -> jaxarm.Problem:
+    """A chain of 10-cm links, self-collision on, turning from along x up to 2 rad,
+    beside ``n_walls`` random wall segments below the x axis."""
+    start, goal = [0.0] * n_links, [2.0] + [0.1] * (n_links - 1)
+    arms = []
+    for posture in (start, goal):  # the posture's polyline, links of 10 cm
+        angles = np.cumsum(posture)
+        joints = np.concatenate([[0.0], np.cumsum(10.0 * np.cos(angles))]), np.concatenate(
+            [[0.0], np.cumsum(10.0 * np.sin(angles))])
+        arms.append(shapely.LineString(np.stack(joints, axis=1)))
+    walls = []
+    while len(walls) < n_walls:  # clear of the start and goal by more than the margin
+        a = rng.uniform((-60, -60), (60, -2))
+        b = a + rng.uniform(-15, 15, 2)
+        if min(arm.distance(shapely.LineString([a, b])) for arm in arms) > margin + 1.0:
+            walls.append((tuple(a), tuple(b)))
+    return jaxarm.Problem(arm=jaxarm.Arm((10.0,) * n_links, self_collision=True), start=start,
+                          goal=goal, world=jaxarm.World(segments=walls), margin=margin,
+                          init_low=-60.0, init_high=60.0)
+
+
+def test_a_postures_links_are_cut_into_groups_of_bounded_work():
+    world = chain_among_walls(7, 12, np.random.default_rng(0)).arrays.world  # 12 slots x 2
+    assert collision.link_edge_pairs(1, world) == 24 and collision.GROUP_WORK == 128
+    assert collision.link_groups(7, world) == [range(0, 5), range(5, 7)]
+    assert collision.link_groups(5, world) == [range(0, 5)]  # 120 link-edge pairs: one group
+
+
+def test_a_group_never_run_proves_nothing_free():
+    """``by_groups``: the branch taken when the first link's length is not positive (never, for
+    a valid arm) gives the carry the value that proves nothing free."""
+    groups = [range(0, 1), range(1, 2)]
+    run = lambda group, total: total + 1.0  # noqa: E731
+    total = jnp.zeros(3)
+    ran = collision.by_groups(groups, run, total, [10.0, 5.0], np.inf)
+    np.testing.assert_array_equal(ran, 2.0)
+    np.testing.assert_array_equal(collision.by_groups(groups, run, total, [0.0, 5.0], np.inf),
+                                  np.inf)
+
+
+@pytest.mark.parametrize("check, margin", [("sampled", 0.0), ("sampled", 1.0),
+                                           ("certified", 0.0)])
+def test_links_in_groups_give_the_bits_of_links_in_one(rng, monkeypatch, check, margin):
+    """A posture's check cut into groups of links, each compiled apart (``GROUP_WORK``), gives
+    the fitness and verdicts of the links written out together, and their violation up to
+    rounding (a depth adds up the links' depths, which each program rounds in its own way)."""
+    from jaxarm.checks.evaluate import evaluate
+
+    problem = chain_among_walls(5, 12, rng, margin).replace(collision=check, n_samples=41)
+    x = rng.uniform(-150, 150, (600, problem.n_free)).astype(np.float32)  # about half free
+    results = []
+    for work in (10**6, 1):  # one group; a group a link
+        monkeypatch.setattr(collision, "GROUP_WORK", work)
+        jax.clear_caches()
+        run = jax.jit(lambda arrays, x: evaluate(problem.spec, arrays, x))
+        results.append(run(problem.arrays, x))
+    assert len(collision.link_groups(5, problem.arrays.world)) == 5
+    one, grouped = results
+    np.testing.assert_array_equal(one.fitness, grouped.fitness)
+    np.testing.assert_array_equal(np.asarray(one.violation) > 0, np.asarray(grouped.violation) > 0)
+    np.testing.assert_allclose(one.violation, grouped.violation, rtol=1e-5, atol=1e-5)
+    free = np.mean(np.asarray(results[0].violation) == 0)
+    assert 0.05 < free < 0.95

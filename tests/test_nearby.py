@@ -263,7 +263,7 @@ def test_refines_gradient_passes_through_gathered_blocks(rng, monkeypatch):
 
     def clearance(theta):  # near obstacles only: a clearance capped at 3 cm
         return sum(jnp.sum(jnp.minimum(bound, 3.0)) for bound in collision.link_clearance_bounds(
-            world, link_endpoints(ARM.lengths, theta), exact=True))
+            ARM.lengths, world, link_endpoints(ARM.lengths, theta), exact=True))
     every = jax.grad(clearance)(theta)
     monkeypatch.setattr(nearby, "CHUNK", 16)
     alone = jax.grad(clearance)(theta)

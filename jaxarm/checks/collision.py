@@ -34,11 +34,49 @@ from jaxarm.model.arm import link_endpoints
 # worlds, so the scan starts above it (benchmarks/RESULTS.md, Decisions and negative results,
 # "The sampled check with a margin on polygon-field").
 UNROLLED_LINK_EDGES = 64
+# Written out, XLA fuses a posture's whole check into one loop over the batch, and past some
+# size LLVM compiles that loop as scalar code: OMPL's chain of 7 links (7 links x 12 wall
+# segments) ran over ten times slower than its chain of 6. So a posture's check of more
+# link-slot work than this (links x (circle slots + polygon edges)) is cut into groups of
+# links of at most this much each, each group compiled apart (``by_groups``)
+# (benchmarks/RESULTS.md, Decisions and negative results, "Links in groups compiled apart").
+GROUP_WORK = 128
 
 
 def link_edge_pairs(n_links: int, world) -> int:
     """Links x polygon slots x vertex slots: the exact distances one posture's check takes."""
     return n_links * world.vertices.shape[0] * world.vertices.shape[1]
+
+
+def link_groups(n_links: int, world) -> list:
+    """The links of a posture's check written out (a world without near tables), in groups
+    of at most ``GROUP_WORK`` link-slot work (a link at least): one group where the whole
+    check fits. A list of ranges of link indices."""
+    per_link = world.circles.shape[0] + link_edge_pairs(1, world)
+    size = n_links
+    if per_link * n_links > GROUP_WORK:
+        size = max(1, GROUP_WORK // per_link)
+    return [range(first, min(first + size, n_links)) for first in range(0, n_links, size)]
+
+
+def by_groups(groups: list, run, carry, lengths, never):
+    """``carry = run(group, carry)`` for each group of links in turn (``link_groups``), the
+    final carry (a pytree of arrays).
+
+    Past one group, each runs in a branch of its own (a ``lax.cond``), which XLA compiles
+    apart, so that each group's operations fuse into a loop of their own (``GROUP_WORK``).
+    The branch's condition is that the first link's length is positive, true for every
+    valid arm and not known when compiling; the other branch, never taken, gives every
+    array of the carry the value ``never``, which proves nothing free (+inf as a depth,
+    -inf as a clearance)."""
+    if len(groups) == 1:
+        return run(groups[0], carry)
+    valid = jnp.asarray(lengths)[0] > 0
+    for group in groups:
+        carry = jax.lax.cond(valid, functools.partial(run, group),
+                             lambda carry: jax.tree.map(
+                                 lambda a: jnp.full_like(a, never), carry), carry)
+    return carry
 
 
 def posture_margin_depth(lengths, world, theta: list, margin=0.0, *, exact: bool):
@@ -60,6 +98,7 @@ def posture_margin_depth(lengths, world, theta: list, margin=0.0, *, exact: bool
     (``link_edge_pairs``), the links are taken one at a time, in a ``lax.scan``. A world
     with near tables (``jaxarm.model.nearby``) tests each link against its listed slots
     alone: the others are farther than the tables' reach, which is at least the margin.
+    Otherwise the links are written out, in groups past ``GROUP_WORK`` (``by_groups``).
     """
     total = jnp.zeros_like(theta[0])
     links = link_endpoints(lengths, theta)
@@ -80,9 +119,11 @@ def posture_margin_depth(lengths, world, theta: list, margin=0.0, *, exact: bool
                                  None),
             total, stacked)
         return total
-    for link in links:
-        total = _add_link_margin_depth(total, link, world, margin, exact=exact)
-    return total
+    def add_depths(group, total):
+        for index in group:
+            total = _add_link_margin_depth(total, links[index], world, margin, exact=exact)
+        return total
+    return by_groups(link_groups(len(links), world), add_depths, total, lengths, jnp.inf)
 
 
 def _add_link_margin_depth(total, link, world, margin, *, exact: bool):
@@ -112,19 +153,21 @@ def posture_clearance_bound(lengths, world, theta: list, *, exact: bool) -> list
       negative values are minus a penetration depth; +inf for a world without obstacles.
     """
     links = link_endpoints(lengths, theta)
-    bounds = link_clearance_bounds(world, links, exact=exact)
+    bounds = link_clearance_bounds(lengths, world, links, exact=exact)
     if world.link_walls is None:
         return bounds
     return bounds + self_collision.pair_separations(links)
 
 
-def link_clearance_bounds(world, links: list, *, exact: bool) -> list:
+def link_clearance_bounds(lengths, world, links: list, *, exact: bool) -> list:
     """``posture_clearance_bound`` of links given by their end points (``link_endpoints``'s
-    tuples, each coordinate of shape (...,)); ``exact`` as there.
+    tuples, each coordinate of shape (...,)) of an arm with link ``lengths``; ``exact`` as
+    there.
 
     In a world with near tables, each link's listed slots, and the tables' reach for every
     other (``jaxarm.model.nearby``): the bound is then exact up to the reach and the reach
-    beyond it."""
+    beyond it. Otherwise every slot, the links in groups past ``GROUP_WORK``
+    (``by_groups``)."""
     def clearance(link, world):
         if exact:
             return smallest_separation(world_lib.separation_parts(*link, world), link[0])
@@ -132,7 +175,11 @@ def link_clearance_bounds(world, links: list, *, exact: bool) -> list:
                          + world_lib.polygon_slots(*link, world, exact=False),
                          jnp.full_like(link[0], jnp.inf))
     if world.near is None:
-        return [clearance(link, world) for link in links]
+        def fill(group, bounds):
+            return [clearance(links[index], world) if index in group else bound
+                    for index, bound in enumerate(bounds)]
+        unset = [jnp.full_like(link[0], -jnp.inf) for link in links]
+        return by_groups(link_groups(len(links), world), fill, unset, lengths, -jnp.inf)
     return [near_minimum(world, index, link, lambda block, link: clearance(link, block), link)
             for index, link in enumerate(links)]
 

@@ -74,11 +74,11 @@ def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x,
     return jax.tree.map(lambda a: a.reshape(x.shape[:-1]), evaluation)
 
 
-def link_clearances(world, links: list) -> list:
-    """Per link, a lower bound on its signed distance to the nearest obstacle (cm; negative
-    inside one; exact for circles), each of the links' batch shape: what ``refine``'s
-    barrier descends (``collision.link_clearance_bounds``)."""
-    return collision_lib.link_clearance_bounds(world, links, exact=False)
+def link_clearances(lengths, world, links: list) -> list:
+    """Per link of an arm with link ``lengths``, a lower bound on its signed distance to the
+    nearest obstacle (cm; negative inside one; exact for circles), each of the links' batch
+    shape: what ``refine``'s barrier descends (``collision.link_clearance_bounds``)."""
+    return collision_lib.link_clearance_bounds(lengths, world, links, exact=False)
 
 
 def compiles_best_at_default_level(spec: ProblemSpec) -> bool:

@@ -117,7 +117,7 @@ def _surrogate_at_samples(spec, arrays, angle, rate, barrier_weight, margin, tem
     else:
         links = jax.lax.cond(needed, lambda a: link_endpoints(arrays.lengths, a),
                              lambda a: [(jnp.zeros_like(a[0]),) * 4] * len(a), angle)
-    bounds = link_clearances(arrays.world, links)
+    bounds = link_clearances(arrays.lengths, arrays.world, links)
     barrier = sum(temperature * jax.nn.softplus((margin - c) / temperature) for c in bounds)
     return distance + barrier_weight * _sum_over_samples(barrier) / spec.n_samples
 
