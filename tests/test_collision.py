@@ -15,6 +15,7 @@ import jaxarm
 from jaxarm.checks import collision
 from jaxarm.checks.certified import bounds, hull
 from jaxarm.model import path
+from jaxarm.model.arm import link_endpoints
 from jaxarm.model import world as world_lib
 from jaxarm.testing import (
     link_segments,
@@ -408,12 +409,15 @@ def test_a_group_never_run_proves_nothing_free():
                                   np.inf)
 
 
-@pytest.mark.parametrize("check, margin", [("sampled", 0.0), ("sampled", 1.0),
-                                           ("certified", 0.0)])
+@pytest.mark.parametrize("check, margin", [("sampled", 0.0), ("certified", 0.0),
+                                           ("certified", 1.0)])
 def test_links_in_groups_give_the_bits_of_links_in_one(rng, monkeypatch, check, margin):
     """A posture's check cut into groups of links, each compiled apart (``GROUP_WORK``), gives
     the fitness and verdicts of the links written out together, and their violation up to
-    rounding (a depth adds up the links' depths, which each program rounds in its own way)."""
+    rounding (a depth adds up the links' depths, which each program rounds in its own way);
+    a group never run (an arm whose first link is not positive) leaves nothing free. (The
+    sampled check with a margin takes exact distances, one link at a time past
+    ``UNROLLED_LINK_EDGES``: no groups.)"""
     from jaxarm.checks.evaluate import evaluate
 
     problem = chain_among_walls(5, 12, rng, margin).replace(collision=check, n_samples=41)
@@ -431,3 +435,25 @@ def test_links_in_groups_give_the_bits_of_links_in_one(rng, monkeypatch, check, 
     np.testing.assert_allclose(one.violation, grouped.violation, rtol=1e-5, atol=1e-5)
     free = np.mean(np.asarray(results[0].violation) == 0)
     assert 0.05 < free < 0.95
+    never = problem.arrays._replace(lengths=np.asarray([0.0] + [10.0] * 4))
+    assert not np.any(np.asarray(run(never, x).violation) == 0)
+
+
+def test_gradients_pass_through_groups_of_links(rng, monkeypatch):
+    """``refine``'s barrier differentiates the links' clearance bounds: the same gradients
+    with the links in groups as in one."""
+    problem = chain_among_walls(4, 3, rng)  # small: a gradient's program grows fast
+    world = problem.arrays.world
+    theta = [jnp.asarray(rng.uniform(-1, 1, 200), jnp.float32) for _ in range(4)]
+    lengths = jnp.asarray(problem.arrays.lengths, jnp.float32)
+
+    def clearance(theta):
+        return sum(jnp.sum(jnp.minimum(bound, 3.0)) for bound in collision.link_clearance_bounds(
+            lengths, world, link_endpoints(lengths, theta), exact=False))
+    gradients = []
+    for work in (10**6, 1):
+        monkeypatch.setattr(collision, "GROUP_WORK", work)
+        gradients.append(jax.jit(jax.grad(clearance))(theta))
+    for one, grouped in zip(*gradients):
+        np.testing.assert_allclose(one, grouped, rtol=1e-6, atol=1e-6)
+    assert sum(float(jnp.abs(g).sum()) for g in gradients[0]) > 0

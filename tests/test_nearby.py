@@ -2,6 +2,8 @@
 slot, no false "free" against the dense shapely oracle among hundreds of obstacles, and a
 program that does not grow with the obstacles."""
 
+import pickle
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -402,16 +404,19 @@ def test_a_problems_arrays_are_placed_on_the_device_once_with_the_same_bits(rng)
     from jaxarm.checks.evaluate import _evaluate_and_certify
 
     problem = corridor_problem(rng, nearby.BROAD_PHASE_WORK + 1, "circles", collision="sampled")
+    x = rng.uniform(-60, 60, (64, problem.n_free)).astype(np.float32)
+    in_a_trace = jax.jit(lambda: jaxarm.fitness(problem, x))()  # placed first in a trace
     placed = problem.device_arrays()
     assert placed is problem.device_arrays()
     host, device = jax.tree.leaves(problem.arrays), jax.tree.leaves(placed)
     assert len(host) == len(device) and all(isinstance(a, jax.Array) for a in device)
     assert [jax.typeof(a) for a in host] == [jax.typeof(a) for a in device]
-    x = rng.uniform(-60, 60, (64, problem.n_free)).astype(np.float32)
     for a, b in zip(_evaluate_and_certify(problem.spec, problem.arrays, x)[0],
                     _evaluate_and_certify(problem.spec, placed, x)[0]):
         np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(jaxarm.fitness(problem, x), in_a_trace)
     assert problem.replace(margin=0.5).device_arrays() is not placed
+    assert "_device_arrays" not in pickle.loads(pickle.dumps(problem)).__dict__
 
 
 def test_distinct_blocks_are_found_whether_their_keys_collide_or_not(rng):
@@ -425,6 +430,17 @@ def test_distinct_blocks_are_found_whether_their_keys_collide_or_not(rng):
     colliding = nearby._distinct_rows(blocks, weights=np.zeros(3, np.uint64))  # one key for all
     np.testing.assert_array_equal(colliding[0], first)
     np.testing.assert_array_equal(colliding[1], rows)
+
+
+def test_near_pairs_come_in_order_of_list_and_slot(rng):
+    """``_near_pairs`` gives its pairs sorted by list, then slot, each once (``_padded``
+    relies on it, falling back to a sort)."""
+    low = rng.uniform(-80, 80, (300, 2))
+    high = low + rng.uniform(0, 6, (300, 2))
+    centres = -80.0 + (160.0 / nearby.GRID_CELLS) * (np.arange(nearby.GRID_CELLS) + 0.5)
+    pairs = nearby._near_pairs(centres, low, high, 30.0, 5.0)
+    key = pairs.lists.astype(np.int64) * 301 + pairs.slots
+    assert len(key) > 1000 and np.all(np.diff(key) > 0)
 
 
 def test_lists_are_filled_alike_from_pairs_in_any_order(rng):

@@ -50,11 +50,13 @@ def link_edge_pairs(n_links: int, world) -> int:
 
 def link_groups(n_links: int, world) -> list:
     """The links of a posture's check written out (a world without near tables), in groups
-    of at most ``GROUP_WORK`` link-slot work (a link at least): one group where the whole
-    check fits. A list of ranges of link indices."""
+    of at most ``GROUP_WORK`` link-slot work (a link at least) on CPU: one group where the
+    whole check fits, and on other backends (where a branch reads its condition back to the
+    host, and the scalar loop was not seen; untested there). A list of ranges of link
+    indices."""
     per_link = world.circles.shape[0] + link_edge_pairs(1, world)
-    size = n_links
-    if per_link * n_links > GROUP_WORK:
+    size = max(1, n_links)
+    if per_link * n_links > GROUP_WORK and jax.default_backend() == "cpu":
         size = max(1, GROUP_WORK // per_link)
     return [range(first, min(first + size, n_links)) for first in range(0, n_links, size)]
 
@@ -119,6 +121,7 @@ def posture_margin_depth(lengths, world, theta: list, margin=0.0, *, exact: bool
                                  None),
             total, stacked)
         return total
+
     def add_depths(group, total):
         for index in group:
             total = _add_link_margin_depth(total, links[index], world, margin, exact=exact)
@@ -175,6 +178,7 @@ def link_clearance_bounds(lengths, world, links: list, *, exact: bool) -> list:
                          + world_lib.polygon_slots(*link, world, exact=False),
                          jnp.full_like(link[0], jnp.inf))
     if world.near is None:
+
         def fill(group, bounds):
             return [clearance(links[index], world) if index in group else bound
                     for index, bound in enumerate(bounds)]

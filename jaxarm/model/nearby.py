@@ -304,7 +304,7 @@ def _near_pairs(centres, low, high, length, width) -> _Pairs:
     box = (low[slots, 0] - x, low[slots, 1] - y, high[slots, 0] - x, high[slots, 1] - y)
     along_x = np.maximum(box[0], -box[2])
     along_y = np.maximum(box[1], -box[3])
-    # One bin at a time, in place: arrays of one bin's candidates stay in cache.
+    # One bin at a time, mostly in place: arrays of one bin's candidates stay in cache.
     gaps, scratch = np.empty_like(along_x), np.empty((2, len(along_x)))
     found = []
     for direction in (np.arange(DIRECTION_BINS) + 0.5) * (np.pi / DIRECTION_BINS):
@@ -315,7 +315,7 @@ def _near_pairs(centres, low, high, length, width) -> _Pairs:
         np.maximum(gaps, np.subtract(gap, 0.5 * length, out=gap), out=gaps)
         np.maximum(gaps, _projection_gap(box, -sin, cos, scratch), out=gaps)
         pair = np.flatnonzero(gaps <= width)
-        found.append((np.full(len(pair), len(found)), pair, gaps[pair]))
+        found.append((np.full(len(pair), len(found), np.int64), pair, gaps[pair]))
     in_bin, pair, gaps = map(np.concatenate, zip(*found))
     return _Pairs(lists=in_bin * n_cells * n_cells + cells[pair], slots=slots[pair], gaps=gaps,
                   centre_squared=centre_squared[pair])

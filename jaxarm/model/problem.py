@@ -315,14 +315,26 @@ class Problem:
     def device_arrays(self) -> ProblemArrays:
         """``arrays`` on JAX's default device, placed once per setting of ``jax_enable_x64``:
         a compiled call given NumPy arrays copies them to the device at every call (the near
-        tables of a world of 1,000 circles are about 40 MB), converted as
+        tables of a world of 1,000 circles are about 42 MB), converted as
         ``jax.device_put`` converts them (float64 to float32 unless x64 is on), so either
-        gives the same bits. For the package's compiled calls from the host."""
+        gives the same bits. For the package's compiled calls from the host; placed eagerly
+        even when first asked for inside a trace. With several devices (or processes), the
+        NumPy ``arrays`` themselves, which a compiled call places where its sharding needs
+        them. The placed arrays live as long as the problem, and are not pickled with it."""
+        if jax.device_count() > 1:
+            return self.arrays
         placed = self.__dict__.setdefault("_device_arrays", {})  # frozen: no __setattr__
         x64 = bool(jax.config.jax_enable_x64)
         if x64 not in placed:
-            placed[x64] = jax.device_put(self.arrays)
+            with jax.ensure_compile_time_eval():  # never a tracer of a caller's jit
+                placed[x64] = jax.device_put(self.arrays)
         return placed[x64]
+
+    def __getstate__(self) -> dict:
+        """The problem's fields and host arrays, without its device arrays."""
+        state = dict(self.__dict__)
+        state.pop("_device_arrays", None)
+        return state
 
     def _packed_world(self) -> WorldArrays:
         """The world packed at the problem's capacities, with near tables for this arm and
