@@ -54,7 +54,7 @@ def link_groups(n_links: int, world) -> list:
     whole check fits, and on other backends (where a branch reads its condition back to the
     host, and the scalar loop was not seen; untested there). A list of ranges of link
     indices."""
-    per_link = world.circles.shape[0] + link_edge_pairs(1, world)
+    per_link = nearby.slot_work((world.circles.shape[0], *world.vertices.shape[:2]))
     size = max(1, n_links)
     if per_link * n_links > GROUP_WORK and jax.default_backend() == "cpu":
         size = max(1, GROUP_WORK // per_link)
