@@ -15,7 +15,8 @@ from jaxarm.checks import certified, collision
 from jaxarm.checks.evaluate import evaluate
 from jaxarm.model import nearby
 from jaxarm.model.arm import link_endpoints
-from jaxarm.testing import dense_clearance, shapely_obstacles
+from jaxarm.model.world import POLYGON_FIELDS
+from jaxarm.testing import dense_clearance, oracle_separation, shapely_obstacles
 
 ARM = jaxarm.Arm((30.0, 30.0, 20.0))
 
@@ -272,6 +273,108 @@ def test_refines_gradient_passes_through_gathered_blocks(rng, monkeypatch):
     for joint in range(ARM.n_joints):
         np.testing.assert_array_equal(alone[joint], every[joint])
     assert np.abs(np.asarray(every[0])).sum() > 0
+
+
+def mixed_problem(rng, collision="certified"):
+    """``corridor_problem`` among 100 circles and 100 triangles (the grid's tables)."""
+    circles, triangles = (corridor_world(rng, 100, kind) for kind in ("circles", "triangles"))
+    return corridor_problem(rng, 0, "", collision, world=jaxarm.World(
+        circles=circles.circles, polygons=triangles.polygons))
+
+
+@pytest.mark.parametrize("kind, count", [("circles", 300), ("triangles", 300), ("mixed", 200),
+                                         ("triangles", 40)])  # 40: one list of every slot
+def test_the_nearest_listed_slot_is_the_nearest_obstacle_for_shapely(rng, monkeypatch, kind,
+                                                                     count):
+    """``over_blocks``' "nearest" of exact separations: where a link's nearest obstacle lies
+    outside it within the tables' reach, the slot it names holds that obstacle (shapely's
+    distance from the slot's own numbers is shapely's nearest distance of every obstacle) and
+    its value is that distance. Of the separating-axis bounds (refine's), the same bits
+    whether a block is read by every link or by the few links that need it."""
+    problem = mixed_problem(rng) if kind == "mixed" else corridor_problem(rng, count, kind)
+    tables = problem.arrays.world.near
+    theta = [jnp.asarray(rng.uniform(-3, 3, 400), jnp.float32) for _ in range(ARM.n_joints)]
+    links = link_endpoints(ARM.lengths, theta)
+
+    def nearest(index, exact):  # traced anew: the chunk is read when tracing
+        return jax.jit(lambda link: nearby.over_blocks(
+            tables, nearby.near_cells(tables, index, *link),
+            lambda block, link: collision.first_smallest(
+                collision.slot_separations(link, block, exact=exact)),
+            "nearest", link))(links[index])
+    every = [nearest(index, False) for index in range(ARM.n_joints)]
+    exact = [nearest(index, True) for index in range(ARM.n_joints)]
+    monkeypatch.setattr(nearby, "CHUNK", 16)
+    monkeypatch.setattr(nearby, "GATHERED", nearby.KINDS)
+    for index in range(ARM.n_joints):
+        alone = nearest(index, False)
+        for field in alone._fields:
+            np.testing.assert_array_equal(getattr(alone, field), getattr(every[index], field))
+    reach, near = float(tables.reach), 0
+    for link, found in zip(links, exact):
+        start, end = (np.stack([np.asarray(a, np.float64) for a in pair], -1)
+                      for pair in (link[:2], link[2:]))
+        oracle, _ = oracle_separation(problem.world, start, end)
+        within = (oracle > 1e-2) & (oracle < reach - 1e-2)  # outside: shapely says 0 inside
+        near += within.sum()
+        np.testing.assert_allclose(np.asarray(found.value)[within], oracle[within], atol=2e-3)
+        named = []  # shapely's distance from the slot each such link's nearest names
+        segments = shapely.linestrings(np.stack([start, end], -2))
+        for segment, code, row, position in zip(
+                segments[within], *(np.asarray(a)[within] for a in found[1:])):
+            numbers = [np.asarray(a[row, position], np.float64)
+                       for a in getattr(tables, f"{nearby.KINDS[code]}s")]
+            if nearby.KINDS[code] == "circle":
+                x, y, radius = numbers[0]
+                named.append(shapely.distance(segment, shapely.Point(x, y)) - radius)
+            else:  # the polygon's valid vertices
+                corners = numbers[0][numbers[POLYGON_FIELDS.index("edge_valid")].astype(bool)]
+                named.append(shapely.distance(segment, shapely.Polygon(corners)))
+        np.testing.assert_allclose(named, oracle[within], atol=2e-3)
+    assert 100 < near < ARM.n_joints * 400  # links near an obstacle, and others not
+
+
+@pytest.mark.parametrize("kind", ["triangles", "mixed"])
+def test_clearances_by_the_nearest_slot_have_the_values_and_gradients_of_every_block(rng, kind):
+    """``link_clearance_bounds(by_nearest=True)`` (refine's barrier): the same values bit for
+    bit, and the same reverse-mode derivatives up to float32 rounding (other programs), as
+    differentiating through every block; forward mode agreeing with reverse mode; zero
+    derivatives where the tables' reach bounds the clearance."""
+    # the sampled check's tables (blocks of 4 polygons): the gradient through every block
+    # compiles faster
+    problem = (mixed_problem(rng, "sampled") if kind == "mixed"
+               else corridor_problem(rng, 300, kind, "sampled"))
+    world = problem.arrays.world
+    theta = [jnp.asarray(rng.uniform(-3, 3, 300), jnp.float32) for _ in range(ARM.n_joints)]
+
+    def bounds(theta, by_nearest):
+        return collision.link_clearance_bounds(ARM.lengths, world,
+                                               link_endpoints(ARM.lengths, theta),
+                                               exact=False, by_nearest=by_nearest)
+
+    def per_posture(theta, by_nearest):  # posture i's value depends on posture i alone
+        return sum(jnp.sin(bound) for bound in bounds(theta, by_nearest))
+
+    def assert_close(one, other):  # float32 rounding of the largest, and no more
+        other = np.asarray(other)
+        assert np.abs(other).max() > 0
+        np.testing.assert_allclose(one, other, rtol=0, atol=1e-6 * np.abs(other).max())
+    values = [jax.jit(bounds, static_argnums=1)(theta, flag) for flag in (True, False)]
+    for one, other in zip(*values):
+        np.testing.assert_array_equal(one, other)
+    reverse = [jax.jit(jax.grad(lambda theta, flag: jnp.sum(per_posture(theta, flag))),
+                       static_argnums=1)(theta, flag) for flag in (True, False)]
+    for joint in range(ARM.n_joints):
+        assert_close(reverse[0][joint], reverse[1][joint])
+    direction = [jnp.asarray(rng.normal(size=300), jnp.float32) for _ in theta]
+    forward, last = jax.jit(lambda theta, d: jax.jvp(
+        lambda theta: (per_posture(theta, True), bounds(theta, True)[-1]), (theta,), (d,))[1])(
+        theta, direction)
+    assert_close(forward, sum(g * d for g, d in zip(reverse[1], direction)))
+    beyond = np.asarray(values[0][-1]) >= float(world.near.reach)
+    assert 0 < beyond.sum() < len(beyond)
+    np.testing.assert_array_equal(np.asarray(last)[beyond], 0.0)
+    assert np.all(np.asarray(last)[~beyond] != 0.0)
 
 
 @pytest.mark.parametrize("margin, every_slot", [(0.0, False), (1.0, False), (0.0, True),

@@ -162,7 +162,8 @@ def posture_clearance_bound(lengths, world, theta: list, *, exact: bool) -> list
     return bounds + self_collision.pair_separations(links)
 
 
-def link_clearance_bounds(lengths, world, links: list, *, exact: bool) -> list:
+def link_clearance_bounds(lengths, world, links: list, *, exact: bool,
+                          by_nearest: bool = False) -> list:
     """``posture_clearance_bound`` of links given by their end points (``link_endpoints``'s
     tuples, each coordinate of shape (...,)) of an arm with link ``lengths``; ``exact`` as
     there.
@@ -170,13 +171,17 @@ def link_clearance_bounds(lengths, world, links: list, *, exact: bool) -> list:
     In a world with near tables, each link's listed slots, and the tables' reach for every
     other (``jaxarm.model.nearby``): the bound is then exact up to the reach and the reach
     beyond it. Otherwise every slot, the links in groups past ``GROUP_WORK``
-    (``by_groups``)."""
+    (``by_groups``). ``by_nearest``: in a world with near tables, the bounds differentiated
+    through each link's nearest listed slot alone (``nearest_clearance``), the same values.
+    """
     def clearance(link, world):
         if exact:
             return smallest_separation(world_lib.separation_parts(*link, world), link[0])
-        return _smallest(world_lib.circle_slots(*link, world)
-                         + world_lib.polygon_slots(*link, world, exact=False),
+        return _smallest(slot_separations(link, world, exact=False),
                          jnp.full_like(link[0], jnp.inf))
+    if world.near is not None and by_nearest:
+        return [nearest_clearance(world, index, link, exact=exact)
+                for index, link in enumerate(links)]
     if world.near is None:
 
         def fill(group, bounds):
@@ -198,6 +203,68 @@ def near_minimum(world, index, link, value, per_link):
                                "min", per_link)
     reach = jnp.asarray(world.near.reach, link[0].dtype)
     return jax.tree.map(lambda a: jnp.minimum(a, reach), found)
+
+
+def nearest_clearance(world, index: int, link, *, exact: bool):
+    """Link ``index``'s clearance bound at end points ``link`` in a world with near tables
+    (``link_clearance_bounds``' value), whose derivative is that of its separation from the
+    nearest listed slot alone (zero where the tables' reach bounds it): a clearance is the
+    smallest of the slots' separations, so away from ties its derivative is the nearest one's.
+    Differentiated through every block instead (the blocks' scan, its branches and their
+    kernels, transposed), refine's program took several times as long to trace and compile on
+    large worlds (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Refine's
+    gradient through the nearest slot alone"). Shape: the link's coordinates'."""
+    def smallest(link, block):
+        return _smallest(slot_separations(link, block, exact=exact),
+                         jnp.full_like(link[0], jnp.inf))
+
+    @jax.custom_jvp
+    def bound(stacked):
+        link = tuple(stacked)
+        return near_minimum(world, index, link, lambda block, link: smallest(link, block), link)
+
+    @bound.defjvp
+    def through_nearest(stacked, tangents):
+        link, tangents = tuple(stacked[0]), tuple(tangents[0])
+        nearest = nearby.over_blocks(
+            world.near, nearby.near_cells(world.near, index, *link),
+            lambda block, link: first_smallest(slot_separations(link, block, exact=exact)),
+            "nearest", link)
+        reach = jnp.asarray(world.near.reach, link[0].dtype)
+        tangent = jnp.zeros_like(link[0])
+        for code, kind in enumerate(nearby.KINDS):
+            if getattr(world.near, f"{kind}s"):
+                slot = nearby.listed_slot(world.near, nearest, kind)
+                _, along = jax.jvp(lambda *link: smallest(link, slot), link, tangents)
+                tangent = jnp.where(nearest.kind == code, along, tangent)
+        return (jnp.minimum(nearest.value, reach),
+                jnp.where(nearest.value < reach, tangent, jnp.zeros_like(tangent)))
+    # The coordinates stacked, one array: a link's end is the next one's start, one traced
+    # array, and passed as separate arguments of two links' custom derivatives, one link's part
+    # of a gradient through it was lost (tests/test_nearby.py; not traced to its cause).
+    return bound(jnp.stack(link))
+
+
+def slot_separations(link, world, *, exact: bool) -> list:
+    """A link's (end points' coordinates, each of shape (...)) signed separation from every
+    slot of ``world``, one array of shape (...) a slot, circles first; ``exact`` as
+    ``posture_clearance_bound``'s."""
+    if exact:
+        parts = world_lib.separation_parts(*link, world)
+        return parts.circles + ([] if parts.polygons is None else list(parts.polygons))
+    return world_lib.circle_slots(*link, world) + world_lib.polygon_slots(*link, world,
+                                                                         exact=False)
+
+
+def first_smallest(values: list):
+    """The elementwise smallest of a list of arrays, and the position in the list of the
+    first that has it (int32; 0 where every one is +inf or NaN)."""
+    smallest, position = jnp.full_like(values[0], jnp.inf), jnp.zeros(values[0].shape, jnp.int32)
+    for index, value in enumerate(values):
+        closer = value < smallest
+        smallest = jnp.where(closer, value, smallest)
+        position = jnp.where(closer, index, position)
+    return smallest, position
 
 
 def smallest_separation(parts: world_lib.SeparationParts, like):

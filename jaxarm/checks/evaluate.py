@@ -77,8 +77,11 @@ def evaluate(spec: ProblemSpec, arrays: ProblemArrays, x,
 def link_clearances(lengths, world, links: list) -> list:
     """Per link of an arm with link ``lengths``, a lower bound on its signed distance to the
     nearest obstacle (cm; negative inside one; exact for circles), each of the links' batch
-    shape: what ``refine``'s barrier descends (``collision.link_clearance_bounds``)."""
-    return collision_lib.link_clearance_bounds(lengths, world, links, exact=False)
+    shape: what ``refine``'s barrier descends (``collision.link_clearance_bounds``,
+    differentiated through each link's nearest listed slot where the world has near
+    tables)."""
+    return collision_lib.link_clearance_bounds(lengths, world, links, exact=False,
+                                               by_nearest=True)
 
 
 def compiles_best_at_default_level(spec: ProblemSpec) -> bool:

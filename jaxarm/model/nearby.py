@@ -26,6 +26,7 @@ reach is read by those links alone.
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Callable, NamedTuple
 
@@ -77,6 +78,19 @@ SPARSE_SHARE = 0.5
 GATHERED = ("polygon",)
 CHUNK = 2048
 
+
+
+class Nearest(NamedTuple):
+    """Where the smallest value of ``over_blocks(..., "nearest")`` was found, per link: each
+    field of the links' shape."""
+
+    value: jax.Array  # the smallest value (+inf where no block was read)
+    kind: jax.Array  # int32: 0 a circle, 1 a polygon (``KINDS``)
+    row: jax.Array  # int32: the row of that kind's listed numbers holding it
+    position: jax.Array  # int32: its slot's position within the row
+
+
+KINDS = ("circle", "polygon")
 
 
 class NearTables(NamedTuple):
@@ -531,34 +545,45 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
       tables: the world's ``NearTables``.
       cells: ``near_cells``, of the links' shape (...).
       value: (block world (``block_world``: a block of slots of one kind), ``per_link`` at
-        some links, each of shape (n,)) -> a pytree of arrays of shape (n,).
-      combine: "add" (identity 0) or "min" (identity +inf).
+        some links, each of shape (n,)) -> a pytree of arrays of shape (n,); for "nearest",
+        the pair (the smallest value over the block's slots, the int32 position of the
+        first slot that has it).
+      combine: "add" (identity 0), "min" (identity +inf) or "nearest": the smallest value and
+        where it lies (``Nearest``; the first such slot, in the blocks' order).
       per_link: a pytree of arrays broadcasting to the links' shape: each link's own data
         that ``value`` reads.
 
     Returns:
-      The combined pytree, each array of the links' shape.
+      The combined pytree (a ``Nearest`` for "nearest"), each array of the links' shape.
     """
     shape = cells.shape
     n_links = math.prod(shape)
     n_lists = math.prod(tables.circle_lists.shape[:-1])
     cells = cells.reshape(n_links)
     per_link = jax.tree.map(lambda a: jnp.broadcast_to(a, shape).reshape(n_links), per_link)
-    elementwise = {"add": jnp.add, "min": jnp.minimum}[combine]
+    elementwise = {"add": functools.partial(jax.tree.map, jnp.add),
+                   "min": functools.partial(jax.tree.map, jnp.minimum),
+                   "nearest": _nearer}[combine]
     # A block is gathered where at most SPARSE_SHARE of the links read it: in this many chunks.
     n_chunks = -(-int(SPARSE_SHARE * n_links) // CHUNK)
     result = None
-    for kind in ("circle", "polygon"):
+    for kind_code, kind in enumerate(KINDS):
         names, numbers = LISTED_FIELDS[kind], getattr(tables, f"{kind}s")
         rows, blocks = getattr(tables, f"{kind}_rows"), getattr(tables, f"{kind}_blocks")
         if not numbers:
             continue
         gathers = kind in GATHERED and n_links >= 2 * CHUNK
 
-        def read_block(block, cells, own, names=names, numbers=numbers, rows=rows):
+        def read_block(block, cells, own, names=names, numbers=numbers, rows=rows,
+                       kind_code=kind_code):
             """``value`` of block ``block`` of lists ``cells`` (an int, or links') at ``own``."""
             row = jnp.asarray(rows).at[block * n_lists + cells].get(mode="promise_in_bounds")
-            return value(block_world(numbers, names, row), own)
+            found = value(block_world(numbers, names, row), own)
+            if combine != "nearest":
+                return found
+            smallest, position = found
+            like = jnp.zeros(smallest.shape, jnp.int32)
+            return Nearest(smallest, like + kind_code, like + row, like + position)
 
         def one_block(block, at=None, read_block=read_block):
             """``value`` of block ``block`` at links ``at`` (None: every link)."""
@@ -567,14 +592,19 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
             return read_block(block, cells_at, own)
 
         if result is None:
-            identity = {"add": 0.0, "min": jnp.inf}[combine]
-            result = jax.tree.map(lambda like: jnp.full(like.shape, identity, like.dtype),
-                                  jax.eval_shape(one_block, jnp.int32(0)))
+            shapes = jax.eval_shape(one_block, jnp.int32(0))
+            if combine == "nearest":  # +inf, found nowhere, until a block is read
+                smallest = jnp.full(shapes.value.shape, jnp.inf, shapes.value.dtype)
+                result = Nearest(smallest, *([jnp.zeros(smallest.shape, jnp.int32)] * 3))
+            else:
+                identity = {"add": 0.0, "min": jnp.inf}[combine]
+                result = jax.tree.map(lambda like: jnp.full(like.shape, identity, like.dtype),
+                                      shapes)
         blocks_needed = jnp.asarray(blocks).at[cells].get(mode="promise_in_bounds")
 
         def every_slot_step(result, block, read_block=read_block):
             # every list's block is the same: list 0's, read once, broadcast to every link
-            return jax.tree.map(elementwise, result, read_block(block, 0, per_link)), None
+            return elementwise(result, read_block(block, 0, per_link)), None
 
         def block_step(result, block, one_block=one_block, blocks_needed=blocks_needed,
                        gathers=gathers):
@@ -583,7 +613,7 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
             skip = lambda result: result  # noqa: E731
 
             def every_link(result):
-                return jax.tree.map(elementwise, result, one_block(block))
+                return elementwise(result, one_block(block))
 
             def its_readers(result):
                 # A scan over the chunks, each skipped past the readers (a ``lax.cond``), not
@@ -594,8 +624,7 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
                     def read(result):
                         at = jax.lax.dynamic_slice(order, (first,), (CHUNK,))
                         values = one_block(block, jnp.minimum(at, n_links - 1))
-                        return jax.tree.map(lambda r, v: _combined_at(r, at, v, combine),
-                                            result, values)
+                        return _combined_at(result, at, values, combine)
                     return jax.lax.cond(first < count, read, skip, result), None
 
                 firsts = jnp.arange(n_chunks, dtype=jnp.int32) * CHUNK
@@ -625,8 +654,30 @@ def _gathered_first(flags, chunk: int):
 
 
 def _combined_at(result, at, values, combine: str):
-    """``result`` with ``values`` added (or taken where smaller) at indices ``at``; indices
-    past the end are dropped."""
+    """``result`` (a pytree of arrays) with ``values`` combined into it (``over_blocks``'
+    ``combine``) at indices ``at`` (distinct); indices past the end are dropped."""
     if combine == "add":
-        return result.at[at].add(values, mode="drop")
-    return result.at[at].min(values, mode="drop")
+        return jax.tree.map(lambda r, v: r.at[at].add(v, mode="drop"), result, values)
+    if combine == "min":
+        return jax.tree.map(lambda r, v: r.at[at].min(v, mode="drop"), result, values)
+    there = jax.tree.map(lambda r: r.at[at].get(mode="fill", fill_value=0), result)
+    return jax.tree.map(lambda r, v: r.at[at].set(v, mode="drop"), result,
+                        _nearer(there, values))
+
+
+def _nearer(found: Nearest, other: Nearest) -> Nearest:
+    """``found``, or ``other`` where its value is smaller (the first found keeps a tie)."""
+    closer = other.value < found.value
+    return jax.tree.map(lambda a, b: jnp.where(closer, b, a), found, other)
+
+
+def listed_slot(tables: NearTables, nearest: Nearest, kind: str) -> WorldArrays:
+    """The world of one listed slot of ``kind`` per link: the one ``nearest`` names
+    (``over_blocks``' "nearest"; where it names the other kind, the first row's first slot),
+    each field of shape (1, *slot data, ...), the links' shape last (as ``block_world``)."""
+    names, numbers = LISTED_FIELDS[kind], getattr(tables, f"{kind}s")
+    block = numbers[0].shape[1]
+    slot = jnp.where(nearest.kind == KINDS.index(kind),
+                     nearest.row * block + nearest.position, 0)
+    one_per_row = tuple(jnp.reshape(a, (-1, 1) + a.shape[2:]) for a in numbers)
+    return block_world(one_per_row, names, slot)
