@@ -258,15 +258,17 @@ def test_links_that_read_a_block_alone_get_the_bits_of_every_link_reading_it(
 
 
 def test_refines_gradient_passes_through_gathered_blocks(rng, monkeypatch):
-    """Reverse-mode gradients of the links' clearances (``refine``'s barrier) through the
-    blocks read by a few links alone are those of every link reading every block."""
+    """Reverse-mode gradients of the links' clearances (``refine``'s barrier, through each
+    link's nearest listed slot) where blocks are read by a few links alone are those of every
+    link reading every block."""
     problem = corridor_problem(rng, 300, "triangles")
     world = problem.arrays.world
     theta = [jnp.asarray(rng.uniform(-3, 3, 300), jnp.float32) for _ in range(ARM.n_joints)]
 
     def clearance(theta):  # near obstacles only: a clearance capped at 3 cm
         return sum(jnp.sum(jnp.minimum(bound, 3.0)) for bound in collision.link_clearance_bounds(
-            ARM.lengths, world, link_endpoints(ARM.lengths, theta), exact=True))
+            ARM.lengths, world, link_endpoints(ARM.lengths, theta), exact=False,
+            by_nearest=True))
     every = jax.grad(clearance)(theta)
     monkeypatch.setattr(nearby, "CHUNK", 16)
     alone = jax.grad(clearance)(theta)
@@ -310,6 +312,10 @@ def test_the_nearest_listed_slot_is_the_nearest_obstacle_for_shapely(rng, monkey
         alone = nearest(index, False)
         for field in alone._fields:
             np.testing.assert_array_equal(getattr(alone, field), getattr(every[index], field))
+    if not nearby.lists_every_slot(tables):  # and the gathered blocks were read
+        monkeypatch.setattr(nearby, "_combined_at", lambda result, at, values, combine: result)
+        assert any(not np.array_equal(nearest(index, False).value, every[index].value)
+                   for index in range(ARM.n_joints))
     reach, near = float(tables.reach), 0
     for link, found in zip(links, exact):
         start, end = (np.stack([np.asarray(a, np.float64) for a in pair], -1)
@@ -336,8 +342,9 @@ def test_the_nearest_listed_slot_is_the_nearest_obstacle_for_shapely(rng, monkey
 
 @pytest.mark.parametrize("kind", ["triangles", "mixed"])
 def test_clearances_by_the_nearest_slot_have_the_values_and_gradients_of_every_block(rng, kind):
-    """``link_clearance_bounds(by_nearest=True)`` (refine's barrier): the same values bit for
-    bit, and the same reverse-mode derivatives up to float32 rounding (other programs), as
+    """``link_clearance_bounds(by_nearest=True)`` (refine's barrier): the same values (bit for
+    bit undifferentiated; differentiated, from the nearest pass, within float32 rounding) and
+    the same reverse-mode derivatives up to float32 rounding (other programs) as
     differentiating through every block; forward mode agreeing with reverse mode; zero
     derivatives where the tables' reach bounds the clearance."""
     # the sampled check's tables (blocks of 4 polygons): the gradient through every block
@@ -360,17 +367,20 @@ def test_clearances_by_the_nearest_slot_have_the_values_and_gradients_of_every_b
         assert np.abs(other).max() > 0
         np.testing.assert_allclose(one, other, rtol=0, atol=1e-6 * np.abs(other).max())
     values = [jax.jit(bounds, static_argnums=1)(theta, flag) for flag in (True, False)]
-    for one, other in zip(*values):
+    for one, other in zip(*values):  # not differentiated: the same program
         np.testing.assert_array_equal(one, other)
     reverse = [jax.jit(jax.grad(lambda theta, flag: jnp.sum(per_posture(theta, flag))),
                        static_argnums=1)(theta, flag) for flag in (True, False)]
     for joint in range(ARM.n_joints):
         assert_close(reverse[0][joint], reverse[1][joint])
     direction = [jnp.asarray(rng.normal(size=300), jnp.float32) for _ in theta]
-    forward, last = jax.jit(lambda theta, d: jax.jvp(
-        lambda theta: (per_posture(theta, True), bounds(theta, True)[-1]), (theta,), (d,))[1])(
+    (differentiated, _), (along, forward) = jax.jit(lambda theta, d: jax.jvp(
+        lambda theta: (bounds(theta, True), per_posture(theta, True)), (theta,), (d,)))(
         theta, direction)
+    for one, other in zip(differentiated, values[1]):  # the nearest pass's own values
+        np.testing.assert_allclose(one, other, rtol=0, atol=1e-4)
     assert_close(forward, sum(g * d for g, d in zip(reverse[1], direction)))
+    last = along[-1]
     beyond = np.asarray(values[0][-1]) >= float(world.near.reach)
     assert 0 < beyond.sum() < len(beyond)
     np.testing.assert_array_equal(np.asarray(last)[beyond], 0.0)

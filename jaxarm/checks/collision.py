@@ -172,7 +172,8 @@ def link_clearance_bounds(lengths, world, links: list, *, exact: bool,
     other (``jaxarm.model.nearby``): the bound is then exact up to the reach and the reach
     beyond it. Otherwise every slot, the links in groups past ``GROUP_WORK``
     (``by_groups``). ``by_nearest``: in a world with near tables, the bounds differentiated
-    through each link's nearest listed slot alone (``nearest_clearance``), the same values.
+    through each link's nearest listed slot alone (``nearest_clearance``; the same values, and
+    not differentiable with respect to the world's arrays).
     """
     def clearance(link, world):
         if exact:
@@ -213,7 +214,9 @@ def nearest_clearance(world, index: int, link, *, exact: bool):
     Differentiated through every block instead (the blocks' scan, its branches and their
     kernels, transposed), refine's program took several times as long to trace and compile on
     large worlds (``benchmarks/RESULTS.md``, *Decisions and negative results*, "Refine's
-    gradient through the nearest slot alone"). Shape: the link's coordinates'."""
+    gradient through the nearest slot alone"). Differentiable with respect to the link's
+    coordinates only (the world's arrays are closed over). Shape: the link's coordinates'
+    (broadcast together)."""
     def smallest(link, block):
         return _smallest(slot_separations(link, block, exact=exact),
                          jnp.full_like(link[0], jnp.inf))
@@ -240,9 +243,9 @@ def nearest_clearance(world, index: int, link, *, exact: bool):
         return (jnp.minimum(nearest.value, reach),
                 jnp.where(nearest.value < reach, tangent, jnp.zeros_like(tangent)))
     # The coordinates stacked, one array: a link's end is the next one's start, one traced
-    # array, and passed as separate arguments of two links' custom derivatives, one link's part
-    # of a gradient through it was lost (tests/test_nearby.py; not traced to its cause).
-    return bound(jnp.stack(link))
+    # array, and passed as four arguments, the gradient of two links' bounds together lost one
+    # link's part in our runs (benchmarks/RESULTS.md, the entry above; not traced to its cause).
+    return bound(jnp.stack(jnp.broadcast_arrays(*link)))
 
 
 def slot_separations(link, world, *, exact: bool) -> list:
@@ -257,11 +260,12 @@ def slot_separations(link, world, *, exact: bool) -> list:
 
 
 def first_smallest(values: list):
-    """The elementwise smallest of a list of arrays, and the position in the list of the
-    first that has it (int32; 0 where every one is +inf or NaN)."""
+    """The elementwise smallest of a list of arrays (NaN where one is NaN, as ``jnp.minimum``
+    gives), and the position in the list of the first that has it (int32; 0 where every one is
+    +inf)."""
     smallest, position = jnp.full_like(values[0], jnp.inf), jnp.zeros(values[0].shape, jnp.int32)
     for index, value in enumerate(values):
-        closer = value < smallest
+        closer = (value < smallest) | jnp.isnan(value)
         smallest = jnp.where(closer, value, smallest)
         position = jnp.where(closer, index, position)
     return smallest, position

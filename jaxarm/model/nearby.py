@@ -527,9 +527,8 @@ def block_world(numbers: tuple, names: tuple, index) -> WorldArrays:
 
 
 def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_link=()):
-    """The sum or minimum of ``value(block, per_link)`` over the blocks of slots listed in
-    ``cells`` (``near_cells``): with the grid's tables, each link paying for its own list's
-    blocks alone.
+    """``combine`` over the blocks of slots listed in ``cells`` (``near_cells``) of
+    ``value(block, per_link)``: with the grid's tables, each link paying for its own blocks.
 
     Block by block (a ``lax.scan``). Tables that list every slot (``every_slot``): each block
     read once, its numbers broadcast against every link. Otherwise a block no link's list
@@ -548,22 +547,19 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
         some links, each of shape (n,)) -> a pytree of arrays of shape (n,); for "nearest",
         the pair (the smallest value over the block's slots, the int32 position of the
         first slot that has it).
-      combine: "add" (identity 0), "min" (identity +inf) or "nearest": the smallest value and
-        where it lies (``Nearest``; the first such slot, in the blocks' order).
+      combine: "add" (the sum), "min" or "nearest": the smallest value and where it lies
+        (``Nearest``; the first such slot, in the blocks' order).
       per_link: a pytree of arrays broadcasting to the links' shape: each link's own data
         that ``value`` reads.
 
     Returns:
-      The combined pytree (a ``Nearest`` for "nearest"), each array of the links' shape.
-    """
+      The combined pytree (a ``Nearest`` for "nearest"), each array of the links' shape."""
     shape = cells.shape
     n_links = math.prod(shape)
     n_lists = math.prod(tables.circle_lists.shape[:-1])
     cells = cells.reshape(n_links)
     per_link = jax.tree.map(lambda a: jnp.broadcast_to(a, shape).reshape(n_links), per_link)
-    elementwise = {"add": functools.partial(jax.tree.map, jnp.add),
-                   "min": functools.partial(jax.tree.map, jnp.minimum),
-                   "nearest": _nearer}[combine]
+    elementwise = _COMBINED[combine]
     # A block is gathered where at most SPARSE_SHARE of the links read it: in this many chunks.
     n_chunks = -(-int(SPARSE_SHARE * n_links) // CHUNK)
     result = None
@@ -579,11 +575,7 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
             """``value`` of block ``block`` of lists ``cells`` (an int, or links') at ``own``."""
             row = jnp.asarray(rows).at[block * n_lists + cells].get(mode="promise_in_bounds")
             found = value(block_world(numbers, names, row), own)
-            if combine != "nearest":
-                return found
-            smallest, position = found
-            like = jnp.zeros(smallest.shape, jnp.int32)
-            return Nearest(smallest, like + kind_code, like + row, like + position)
+            return _found_where(found, kind_code, row) if combine == "nearest" else found
 
         def one_block(block, at=None, read_block=read_block):
             """``value`` of block ``block`` at links ``at`` (None: every link)."""
@@ -592,14 +584,7 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
             return read_block(block, cells_at, own)
 
         if result is None:
-            shapes = jax.eval_shape(one_block, jnp.int32(0))
-            if combine == "nearest":  # +inf, found nowhere, until a block is read
-                smallest = jnp.full(shapes.value.shape, jnp.inf, shapes.value.dtype)
-                result = Nearest(smallest, *([jnp.zeros(smallest.shape, jnp.int32)] * 3))
-            else:
-                identity = {"add": 0.0, "min": jnp.inf}[combine]
-                result = jax.tree.map(lambda like: jnp.full(like.shape, identity, like.dtype),
-                                      shapes)
+            result = _identity(combine, jax.eval_shape(one_block, jnp.int32(0)))
         blocks_needed = jnp.asarray(blocks).at[cells].get(mode="promise_in_bounds")
 
         def every_slot_step(result, block, read_block=read_block):
@@ -617,7 +602,7 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
 
             def its_readers(result):
                 # A scan over the chunks, each skipped past the readers (a ``lax.cond``), not
-                # a while loop: reverse-mode differentiable (refine's gradient).
+                # a while loop: reverse-mode differentiable.
                 order = _gathered_first(reads, CHUNK)
 
                 def one_chunk(result, first):
@@ -655,7 +640,8 @@ def _gathered_first(flags, chunk: int):
 
 def _combined_at(result, at, values, combine: str):
     """``result`` (a pytree of arrays) with ``values`` combined into it (``over_blocks``'
-    ``combine``) at indices ``at`` (distinct); indices past the end are dropped."""
+    ``combine``) at indices ``at`` (distinct, but for indices past the end, which are
+    dropped)."""
     if combine == "add":
         return jax.tree.map(lambda r, v: r.at[at].add(v, mode="drop"), result, values)
     if combine == "min":
@@ -665,9 +651,28 @@ def _combined_at(result, at, values, combine: str):
                         _nearer(there, values))
 
 
+def _identity(combine: str, like):
+    """What ``over_blocks`` combines its blocks into (``like``: the shapes of a block's
+    value): 0 to add to, +inf for a minimum, and for "nearest" +inf found nowhere."""
+    if combine == "nearest":
+        smallest = jnp.full(like.value.shape, jnp.inf, like.value.dtype)
+        return Nearest(smallest, *([jnp.zeros(smallest.shape, jnp.int32)] * 3))
+    identity = {"add": 0.0, "min": jnp.inf}[combine]
+    return jax.tree.map(lambda a: jnp.full(a.shape, identity, a.dtype), like)
+
+
+def _found_where(found, kind_code: int, row) -> Nearest:
+    """A block's "nearest" ``value`` (the smallest, and its position in the block) with where
+    it lies: the kind's code (``KINDS``) and the block's row, per link."""
+    smallest, position = found
+    like = jnp.zeros(smallest.shape, jnp.int32)
+    return Nearest(smallest, like + kind_code, like + row, like + position)
+
+
 def _nearer(found: Nearest, other: Nearest) -> Nearest:
-    """``found``, or ``other`` where its value is smaller (the first found keeps a tie)."""
-    closer = other.value < found.value
+    """``found``, or ``other`` where its value is smaller or NaN (the first found keeps a tie,
+    and a NaN)."""
+    closer = (other.value < found.value) | jnp.isnan(other.value)
     return jax.tree.map(lambda a, b: jnp.where(closer, b, a), found, other)
 
 
@@ -681,3 +686,8 @@ def listed_slot(tables: NearTables, nearest: Nearest, kind: str) -> WorldArrays:
                      nearest.row * block + nearest.position, 0)
     one_per_row = tuple(jnp.reshape(a, (-1, 1) + a.shape[2:]) for a in numbers)
     return block_world(one_per_row, names, slot)
+
+
+# ``over_blocks``' combines, one value into another (pytrees of arrays).
+_COMBINED = {"add": functools.partial(jax.tree.map, jnp.add),
+             "min": functools.partial(jax.tree.map, jnp.minimum), "nearest": _nearer}
