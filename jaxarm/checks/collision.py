@@ -244,7 +244,8 @@ def nearest_clearance(world, index: int, link, *, exact: bool):
                 jnp.where(nearest.value < reach, tangent, jnp.zeros_like(tangent)))
     # The coordinates stacked, one array: a link's end is the next one's start, one traced
     # array, and passed as four arguments, the gradient of two links' bounds together lost one
-    # link's part in our runs (benchmarks/RESULTS.md, the entry above; not traced to its cause).
+    # link's part in our runs (benchmarks/RESULTS.md, "Refine's gradient through the nearest
+    # slot alone"; not traced to its cause).
     return bound(jnp.stack(jnp.broadcast_arrays(*link)))
 
 
