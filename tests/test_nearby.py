@@ -387,6 +387,15 @@ def test_clearances_by_the_nearest_slot_have_the_values_and_gradients_of_every_b
     assert np.all(np.asarray(last)[~beyond] != 0.0)
 
 
+def test_clearances_by_the_nearest_slot_take_the_cheaper_bound_alone(rng):
+    """The nearest pass is built and tested on the cheaper bound: asked for exact distances,
+    it says so rather than giving them untested."""
+    world = corridor_problem(rng, 100, "circles", "sampled").arrays.world
+    links = link_endpoints(ARM.lengths, [jnp.zeros(3, jnp.float32)] * ARM.n_joints)
+    with pytest.raises(ValueError, match="by_nearest takes the cheaper bound.*exact=True"):
+        collision.link_clearance_bounds(ARM.lengths, world, links, exact=True, by_nearest=True)
+
+
 @pytest.mark.parametrize("margin, every_slot", [(0.0, False), (1.0, False), (0.0, True),
                                                (1.0, True)])
 def test_the_sampled_check_gives_the_same_verdicts_with_and_without_tables(

@@ -171,18 +171,20 @@ def link_clearance_bounds(lengths, world, links: list, *, exact: bool,
     In a world with near tables, each link's listed slots, and the tables' reach for every
     other (``jaxarm.model.nearby``): the bound is then exact up to the reach and the reach
     beyond it. Otherwise every slot, the links in groups past ``GROUP_WORK``
-    (``by_groups``). ``by_nearest``: in a world with near tables, the bounds differentiated
-    through each link's nearest listed slot alone (``nearest_clearance``; the same values, and
-    not differentiable with respect to the world's arrays).
+    (``by_groups``). ``by_nearest``: in a world with near tables, the cheaper bound (``exact``
+    False) differentiated through each link's nearest listed slot alone
+    (``nearest_clearance``; the same values, and not differentiable with respect to the
+    world's arrays).
     """
     def clearance(link, world):
         if exact:
             return smallest_separation(world_lib.separation_parts(*link, world), link[0])
-        return _smallest(slot_separations(link, world, exact=False),
-                         jnp.full_like(link[0], jnp.inf))
+        return _cheaper_clearance(link, world)
     if world.near is not None and by_nearest:
-        return [nearest_clearance(world, index, link, exact=exact)
-                for index, link in enumerate(links)]
+        if exact:
+            raise ValueError("link_clearance_bounds: by_nearest takes the cheaper bound "
+                             "(exact=False), got exact=True")
+        return [nearest_clearance(world, index, link) for index, link in enumerate(links)]
     if world.near is None:
 
         def fill(group, bounds):
@@ -206,10 +208,10 @@ def near_minimum(world, index, link, value, per_link):
     return jax.tree.map(lambda a: jnp.minimum(a, reach), found)
 
 
-def nearest_clearance(world, index: int, link, *, exact: bool):
+def nearest_clearance(world, index: int, link):
     """Link ``index``'s clearance bound at end points ``link`` in a world with near tables
-    (``link_clearance_bounds``' value), whose derivative is that of its separation from the
-    nearest listed slot alone (zero where the tables' reach bounds it): a clearance is the
+    (``link_clearance_bounds``' cheaper value), whose derivative is that of its separation from
+    the nearest listed slot alone (zero where the tables' reach bounds it): a clearance is the
     smallest of the slots' separations, so away from ties its derivative is the nearest one's.
     Differentiated through every block instead (the blocks' scan, its branches and their
     kernels, transposed), refine's program took several times as long to trace and compile on
@@ -217,28 +219,26 @@ def nearest_clearance(world, index: int, link, *, exact: bool):
     gradient through the nearest slot alone"). Differentiable with respect to the link's
     coordinates only (the world's arrays are closed over). Shape: the link's coordinates'
     (broadcast together)."""
-    def smallest(link, block):
-        return _smallest(slot_separations(link, block, exact=exact),
-                         jnp.full_like(link[0], jnp.inf))
-
     @jax.custom_jvp
     def bound(stacked):
         link = tuple(stacked)
-        return near_minimum(world, index, link, lambda block, link: smallest(link, block), link)
+        return near_minimum(world, index, link,
+                            lambda block, link: _cheaper_clearance(link, block), link)
 
     @bound.defjvp
     def through_nearest(stacked, tangents):
         link, tangents = tuple(stacked[0]), tuple(tangents[0])
         nearest = nearby.over_blocks(
             world.near, nearby.near_cells(world.near, index, *link),
-            lambda block, link: first_smallest(slot_separations(link, block, exact=exact)),
+            lambda block, link: first_smallest(slot_separations(link, block, exact=False)),
             "nearest", link)
         reach = jnp.asarray(world.near.reach, link[0].dtype)
         tangent = jnp.zeros_like(link[0])
         for code, kind in enumerate(nearby.KINDS):
             if getattr(world.near, f"{kind}s"):
                 slot = nearby.listed_slot(world.near, nearest, kind)
-                _, along = jax.jvp(lambda *link: smallest(link, slot), link, tangents)
+                _, along = jax.jvp(lambda *link: _cheaper_clearance(link, slot), link,
+                                   tangents)
                 tangent = jnp.where(nearest.kind == code, along, tangent)
         return (jnp.minimum(nearest.value, reach),
                 jnp.where(nearest.value < reach, tangent, jnp.zeros_like(tangent)))
@@ -258,6 +258,13 @@ def slot_separations(link, world, *, exact: bool) -> list:
         return parts.circles + ([] if parts.polygons is None else list(parts.polygons))
     return world_lib.circle_slots(*link, world) + world_lib.polygon_slots(*link, world,
                                                                          exact=False)
+
+
+def _cheaper_clearance(link, world):
+    """The smallest of a link's separations from every slot of ``world`` by the cheaper
+    bound (``slot_separations`` with ``exact`` False), of the link's coordinates' shape; +inf
+    without slots."""
+    return _smallest(slot_separations(link, world, exact=False), jnp.full_like(link[0], jnp.inf))
 
 
 def first_smallest(values: list):
