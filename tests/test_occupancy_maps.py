@@ -64,6 +64,39 @@ def test_a_colour_png_averages_its_channels(tmp_path):
     np.testing.assert_array_equal(grid.occupied, [[False, True], [True, False]])
 
 
+@pytest.mark.parametrize("suffix", [".png", ".pgm"])
+@pytest.mark.parametrize("negate", [0, 1])
+def test_sixteen_bit_greyscale_is_read_on_its_own_scale(tmp_path, suffix, negate):
+    """A 16-bit PNG (Pillow's mode "I;16") or PGM ("I"): occupancy (65535 - p) / 65535, the
+    same cells as the 8-bit image of the same shades; clipped to 8 bits, every shade past 255
+    read as white (free)."""
+    shades = np.array([[0, 254, 205], [254, 40, 150]])  # 40: 0.84 occupied; 150: 0.41 unknown
+    eight = write_map(tmp_path, shades, name="eight", negate=negate)
+    sixteen = write_map(tmp_path, np.zeros((1, 1)), name="sixteen", image_suffix=suffix,
+                        negate=negate)
+    image = Image.fromarray((shades * 257).astype(np.uint16))  # 255 * 257 = 65535
+    image.save(tmp_path / f"sixteen{suffix}")
+    with Image.open(tmp_path / f"sixteen{suffix}") as saved:
+        assert saved.mode == {".png": "I;16", ".pgm": "I"}[suffix]
+    for unknown in ("occupied", "free"):
+        np.testing.assert_array_equal(load_map(sixteen, unknown=unknown).occupied,
+                                      load_map(eight, unknown=unknown).occupied)
+    expected = {0: [[True, False, True], [False, True, True]],  # 205, 150 unknown
+                1: [[False, True, True], [True, False, True]]}[negate]  # 150 unknown
+    np.testing.assert_array_equal(load_map(sixteen).occupied, expected)
+
+
+@pytest.mark.parametrize("pixels, message", [
+    (np.full((2, 2), 0.5, np.float32), r"holds floating-point pixels \(mode 'F'\)"),
+    (np.full((2, 2), 70000, np.int32), r"\(mode 'I'\) has pixels outside 0-65535, got 70000"),
+])
+def test_images_of_no_known_scale_get_one_line(tmp_path, pixels, message):
+    path = write_map(tmp_path, np.zeros((1, 1)), image_suffix=".tiff")
+    Image.fromarray(pixels).save(tmp_path / "room.tiff")
+    with pytest.raises(ValueError, match=r"room.yaml: image '.*room.tiff' " + message):
+        load_map(path)
+
+
 @pytest.mark.parametrize("keys, message", [
     ({"image": "missing.pgm"}, r"image '.*missing.pgm' not found"),
     ({"free_thresh": 0.7}, r"free_thresh <= occupied_thresh"),

@@ -11,8 +11,9 @@ A map is a YAML file beside an image (PGM, PNG or anything Pillow reads)::
     mode: trinary                # optional; the only mode read
 
 As ``map_server`` reads it: a pixel's value p (0-255, the mean of its colour channels) has
-occupancy ``(255 - p) / 255`` (``p / 255`` with ``negate: 1``); row 0 of the image is the top
-of the map. Units become cm. The map's frame is the arm's: its base at (0, 0). Unknown cells
+occupancy ``(255 - p) / 255`` (``p / 255`` with ``negate: 1``); greyscale deeper than 8 bits
+(16-bit PNG, PGM past 255) on its own scale, 0-65535, as nav2's ``map_server`` reads any depth;
+row 0 of the image is the top of the map. Units become cm. The map's frame is the arm's: its base at (0, 0). Unknown cells
 count as occupied unless ``unknown="free"``.
 
 Every occupied cell becomes part of an obstacle: runs of occupied cells along each row are
@@ -32,6 +33,9 @@ import numpy as np
 from jaxarm.model.world import World
 
 UNKNOWN = ("occupied", "free")
+# The modes Pillow opens greyscale deeper than 8 bits as (16-bit PNG; PGM past 255, which it
+# scales to 0-65535): read on that scale, never clipped to 8 bits.
+_DEEP_GREY = ("I;16", "I;16B", "I;16L", "I;16N", "I")
 _KEYS = {"image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh", "mode"}
 
 
@@ -72,8 +76,9 @@ def load_map(path: str | pathlib.Path, unknown: str = "occupied") -> OccupancyMa
 
     Raises:
       ValueError: one line naming the file and the key: a missing or unreadable file or
-        image, a threshold outside [0, 1] or free above occupied, a resolution <= 0, a yaw
-        other than 0, an unknown key or mode.
+        image, an image of floating-point pixels or of pixels past 16 bits, a threshold
+        outside [0, 1] or free above occupied, a resolution <= 0, a yaw other than 0, an
+        unknown key or mode.
     """
     import yaml  # PyYAML, as ROS itself reads these files
 
@@ -132,13 +137,21 @@ def _number(path, key: str, value) -> float:
 
 
 def _occupancy(path, image_path: pathlib.Path, negate: int) -> np.ndarray:
-    """Each pixel's occupancy in [0, 1], shape (rows, columns), as ``map_server`` computes it."""
+    """Each pixel's occupancy in [0, 1], shape (rows, columns), as ``map_server`` computes it:
+    its value over the image's full scale, 255, or 65535 for greyscale deeper than 8 bits
+    (``_DEEP_GREY``)."""
     from PIL import Image, UnidentifiedImageError
 
     try:
         with Image.open(image_path) as image:
-            pixels = np.asarray(image.convert("RGBA") if image.mode not in ("L", "I", "F")
-                                else image, dtype=np.float64)
+            mode = image.mode
+            if mode == "F":
+                raise ValueError(f"{path}: image {str(image_path)!r} holds floating-point "
+                                 "pixels (mode 'F'); save the map as 8- or 16-bit greyscale "
+                                 "or as colour")
+            full = 65535.0 if mode in _DEEP_GREY else 255.0
+            pixels = np.asarray(image if mode in _DEEP_GREY + ("L",) else image.convert("RGBA"),
+                                dtype=np.float64)
     except FileNotFoundError:
         raise ValueError(f"{path}: image {str(image_path)!r} not found") from None
     except (OSError, UnidentifiedImageError) as error:
@@ -147,7 +160,10 @@ def _occupancy(path, image_path: pathlib.Path, negate: int) -> np.ndarray:
         pixels = pixels[..., :3].mean(axis=-1)
     if pixels.size == 0:
         raise ValueError(f"{path}: image {str(image_path)!r} is empty")
-    return pixels / 255.0 if negate else (255.0 - pixels) / 255.0
+    if pixels.min() < 0 or pixels.max() > full:  # a 32-bit integer image
+        raise ValueError(f"{path}: image {str(image_path)!r} (mode {mode!r}) has pixels "
+                         f"outside 0-{full:.0f}, got {pixels.min():.0f} to {pixels.max():.0f}")
+    return pixels / full if negate else (full - pixels) / full
 
 
 def occupied_boxes(occupied: np.ndarray) -> list[tuple[int, int, int, int]]:
