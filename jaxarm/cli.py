@@ -265,8 +265,9 @@ def _clutter(args) -> None:
     from jaxarm.io.scenario_files import load_scenario, save_scenario
     from jaxarm.model.clutter import clutter
 
-    if args.output.suffix != ".toml":
+    if args.output.suffix != ".toml":  # exactly: as save_scenario and load_scenario read it
         raise ValueError(f"--output must end in .toml, got {str(args.output)!r}")
+    _check_outputs(args)
     try:
         problem = clutter(load_scenario(args.scenario), args.count, args.kind, args.size,
                           args.seed, clear_path=0 if args.clear_path else None)
@@ -347,7 +348,7 @@ def _check_outputs(args) -> None:
     from jaxarm.io.files import output_file
 
     suffixes = {"plot": FIGURE_SUFFIXES, "gif": (".gif",), "export": (".csv", ".json")}
-    for name in ("json", "csv", "plot", "gif", "export"):
+    for name in ("json", "csv", "plot", "gif", "export", "output"):
         path = getattr(args, name, None)
         if path is None:
             continue

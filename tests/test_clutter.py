@@ -38,6 +38,12 @@ def test_clutter_refuses_what_does_not_fit_and_bad_arguments(open_space):
         jaxarm.clutter(open_space, 5, size=(2.0, 1.0))
     with pytest.raises(ValueError, match=r"count must be >= 1"):
         jaxarm.clutter(open_space, 0)
+    with pytest.raises(ValueError, match=r"count must be <= 65536, got 70000"):  # MAX_SLOTS
+        jaxarm.clutter(open_space, 70_000, "triangles")
+    with pytest.raises(ValueError, match=r"clear_path must have 3 values, got 2"):
+        jaxarm.clutter(open_space, 5, clear_path=[1.0, 2.0])
+    with pytest.raises(ValueError, match=r"clear_path must be a sequence of numbers, got 'no'"):
+        jaxarm.clutter(open_space, 5, clear_path="no")
 
 
 def test_the_command_writes_a_scenario_that_loads_back(tmp_path, capsys):
@@ -51,6 +57,11 @@ def test_the_command_writes_a_scenario_that_loads_back(tmp_path, capsys):
     assert main(["clutter", "open-space", "--count", "4", "--size", "3", "1", "-o",
                  str(out)]) == 2
     assert capsys.readouterr().err.strip().splitlines()[-1].startswith("jaxarm: error: --size")
+    missing = tmp_path / "no-such-folder" / "clutter.toml"  # named, not a temporary file
+    assert main(["clutter", "open-space", "--count", "4", "-o", str(missing)]) == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        f"jaxarm: error: --output {str(missing)!r}: folder {str(missing.parent)!r} does not "
+        "exist")
 
 
 @pytest.mark.parametrize("count, kind, size", [(300, "circles", (0.3, 1.2)),

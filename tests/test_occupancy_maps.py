@@ -64,6 +64,15 @@ def test_a_colour_png_averages_its_channels(tmp_path):
     np.testing.assert_array_equal(grid.occupied, [[False, True], [True, False]])
 
 
+def test_a_yaml_syntax_error_names_its_line(tmp_path):
+    path = tmp_path / "room.yaml"
+    path.write_text("image: room.png\nresolution: [0.01\norigin: [-1.0, -1.0, 0.0]\n")
+    with pytest.raises(ValueError, match=r"room.yaml: not a YAML map \(while parsing a flow "
+                                         r"sequence at line 2, column 13: expected ',' or ']', "
+                                         r"but got .* at line 3, column 7\)"):
+        load_map(path)
+
+
 @pytest.mark.parametrize("suffix", [".png", ".pgm"])
 @pytest.mark.parametrize("negate", [0, 1])
 def test_sixteen_bit_greyscale_is_read_on_its_own_scale(tmp_path, suffix, negate):

@@ -90,7 +90,7 @@ def load_map(path: str | pathlib.Path, unknown: str = "occupied") -> OccupancyMa
     except OSError as error:
         raise ValueError(f"cannot read map {str(path)!r}: {error.strerror}") from None
     except yaml.YAMLError as error:
-        raise ValueError(f"{path}: not a YAML map ({str(error).splitlines()[0]})") from None
+        raise ValueError(f"{path}: not a YAML map ({_yaml_problem(error)})") from None
     if not isinstance(data, dict):
         raise ValueError(f"{path}: a map must be a YAML mapping with image, resolution and "
                          f"origin, got {data!r}")
@@ -128,6 +128,19 @@ def load_map(path: str | pathlib.Path, unknown: str = "occupied") -> OccupancyMa
         occupied |= occupancy >= free_thresh
     return OccupancyMap(occupied=occupied, resolution=100.0 * resolution,
                         origin=(100.0 * x, 100.0 * y), source=str(path))
+
+
+def _yaml_problem(error) -> str:
+    """PyYAML's error in one line: what it found, and where (lines and columns from 1), after
+    what it was parsing and where that began."""
+    def at(mark) -> str:
+        return "" if mark is None else f" at line {mark.line + 1}, column {mark.column + 1}"
+    problem = getattr(error, "problem", None)
+    if problem is None:
+        return str(error).splitlines()[0]
+    context = getattr(error, "context", None)
+    began = "" if context is None else f"{context}{at(getattr(error, 'context_mark', None))}: "
+    return f"{began}{problem}{at(getattr(error, 'problem_mark', None))}"
 
 
 def _number(path, key: str, value) -> float:

@@ -14,7 +14,7 @@ import numpy as np
 
 from jaxarm._validate import check_seed, finite_vector, positive_int
 from jaxarm.choices import CLUTTER_KINDS, one_of
-from jaxarm.model.problem import Problem
+from jaxarm.model.problem import MAX_SLOTS, Problem
 from jaxarm.model.world import OBSTACLE_KINDS, World
 
 CLEAR_PATH_SAMPLES = 1001  # instants of ``clear_path`` kept clear
@@ -29,7 +29,8 @@ def clutter(problem: Problem, count: int, kind: str = "circles", size=(1.0, 3.0)
 
     Args:
       problem: the arm, its start and goal, and any obstacles it already has.
-      count: obstacles to add, >= 1.
+      count: obstacles to add, >= 1 (with the world's own of the kind's slots, circles or
+        polygons, at most ``MAX_SLOTS``).
       kind: ``"circles"``, ``"triangles"`` (convex, vertices at random angles on the
         circumcircle) or ``"boxes"`` (axis-aligned squares).
       size: ``(smallest, largest)`` circumradius, cm, 0 < smallest <= largest.
@@ -53,8 +54,9 @@ def clutter(problem: Problem, count: int, kind: str = "circles", size=(1.0, 3.0)
     """
     if not isinstance(problem, Problem):
         raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
-    count = positive_int("count", count, minimum=1, maximum=100_000)
     one_of("kind", kind, CLUTTER_KINDS)
+    slots = problem.world.capacities()[0 if kind == "circles" else 1]  # the world's own
+    count = positive_int("count", count, minimum=1, maximum=MAX_SLOTS - slots)
     low, high = (float(v) for v in finite_vector("size", size, length=2))
     if not 0 < low <= high:
         raise ValueError(f"size must be (smallest, largest) with 0 < smallest <= largest (cm), "
@@ -96,8 +98,9 @@ def _path_postures(problem: Problem, clear_path):
     between two of them."""
     from jaxarm.model.path_functions import joint_path
 
-    x = np.broadcast_to(np.asarray(clear_path, dtype=np.float64), (problem.n_free,))
-    finite_vector("clear_path", x, problem.n_free)
+    if np.ndim(clear_path) == 0 and not isinstance(clear_path, str):  # 0: zeros
+        clear_path = np.full(problem.n_free, clear_path)
+    x = finite_vector("clear_path", clear_path, problem.n_free)
     r = np.linspace(0.0, 1.0, CLEAR_PATH_SAMPLES)
     postures = np.asarray(joint_path(problem, x.astype(np.float32), r), dtype=np.float64)
     ends = np.stack([_posture_links(problem.arm.lengths, p)[:, 2:] for p in postures])
