@@ -38,12 +38,26 @@ def test_clutter_refuses_what_does_not_fit_and_bad_arguments(open_space):
         jaxarm.clutter(open_space, 5, size=(2.0, 1.0))
     with pytest.raises(ValueError, match=r"count must be >= 1"):
         jaxarm.clutter(open_space, 0)
-    with pytest.raises(ValueError, match=r"count must be <= 65536, got 70000"):  # MAX_SLOTS
-        jaxarm.clutter(open_space, 70_000, "triangles")
+    # a world holds MAX_SLOTS polygon slots: here 6 taken (5 boxes and a triangle)
+    walled = open_space.replace(world=jaxarm.World(
+        boxes=[((900.0, 900.0), (901.0, 901.0))] * 5,
+        polygons=[[(950, 950), (951, 950), (950, 951)]]),
+        capacities=None)
+    for kind in ("boxes", "triangles"):
+        with pytest.raises(ValueError, match=r"count must be <= 65530 \(a world holds 65536 "
+                                             r"polygon slots and 'open-space' fills 6\), got "
+                                             r"65531"):
+            jaxarm.clutter(walled, 65_531, kind)
+    with pytest.raises(ValueError, match=r"count must be <= 65536 .* got 70000"):
+        jaxarm.clutter(walled, 70_000, "circles")  # its circle slots are all free
     with pytest.raises(ValueError, match=r"clear_path must have 3 values, got 2"):
         jaxarm.clutter(open_space, 5, clear_path=[1.0, 2.0])
     with pytest.raises(ValueError, match=r"clear_path must be a sequence of numbers, got 'no'"):
         jaxarm.clutter(open_space, 5, clear_path="no")
+    for scalar in (False, 0.5):  # a scalar stands for zeros only as 0
+        with pytest.raises(ValueError, match=r"clear_path must be 0 \(the path with no free "
+                                             r"coefficients\) or 3 numbers, got " + str(scalar)):
+            jaxarm.clutter(open_space, 5, clear_path=scalar)
 
 
 def test_the_command_writes_a_scenario_that_loads_back(tmp_path, capsys):

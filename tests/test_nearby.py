@@ -392,8 +392,10 @@ def test_clearances_by_the_nearest_slot_take_the_cheaper_bound_alone(rng):
     it says so rather than giving them untested."""
     world = corridor_problem(rng, 100, "circles", "sampled").arrays.world
     links = link_endpoints(ARM.lengths, [jnp.zeros(3, jnp.float32)] * ARM.n_joints)
-    with pytest.raises(ValueError, match="by_nearest takes the cheaper bound.*exact=True"):
-        collision.link_clearance_bounds(ARM.lengths, world, links, exact=True, by_nearest=True)
+    for near in (world.near, None):  # with near tables or not
+        with pytest.raises(ValueError, match="by_nearest takes the cheaper bound.*exact=True"):
+            collision.link_clearance_bounds(ARM.lengths, world._replace(near=near), links,
+                                            exact=True, by_nearest=True)
 
 
 @pytest.mark.parametrize("margin, every_slot", [(0.0, False), (1.0, False), (0.0, True),

@@ -71,6 +71,9 @@ def test_a_yaml_syntax_error_names_its_line(tmp_path):
                                          r"sequence at line 2, column 13: expected ',' or ']', "
                                          r"but got .* at line 3, column 7\)"):
         load_map(path)
+    path.write_bytes(b"image: caf\xe9.png\n")  # Latin-1, not UTF-8
+    with pytest.raises(ValueError, match=r"room.yaml: not a YAML map \(not UTF-8 text: byte 10\)"):
+        load_map(path)
 
 
 @pytest.mark.parametrize("suffix", [".png", ".pgm"])
@@ -97,7 +100,7 @@ def test_sixteen_bit_greyscale_is_read_on_its_own_scale(tmp_path, suffix, negate
 
 @pytest.mark.parametrize("pixels, message", [
     (np.full((2, 2), 0.5, np.float32), r"holds floating-point pixels \(mode 'F'\)"),
-    (np.full((2, 2), 70000, np.int32), r"\(mode 'I'\) has pixels outside 0-65535, got 70000"),
+    (np.full((2, 2), 255, np.int32), r"holds 32-bit integer pixels \(mode 'I'\)"),
 ])
 def test_images_of_no_known_scale_get_one_line(tmp_path, pixels, message):
     path = write_map(tmp_path, np.zeros((1, 1)), image_suffix=".tiff")

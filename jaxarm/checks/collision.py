@@ -176,14 +176,15 @@ def link_clearance_bounds(lengths, world, links: list, *, exact: bool,
     (``nearest_clearance``; the same values, and not differentiable with respect to the
     world's arrays).
     """
+    if by_nearest and exact:
+        raise ValueError("link_clearance_bounds: by_nearest takes the cheaper bound "
+                         "(exact=False), got exact=True")
+
     def clearance(link, world):
         if exact:
             return smallest_separation(world_lib.separation_parts(*link, world), link[0])
         return _cheaper_clearance(link, world)
     if world.near is not None and by_nearest:
-        if exact:
-            raise ValueError("link_clearance_bounds: by_nearest takes the cheaper bound "
-                             "(exact=False), got exact=True")
         return [nearest_clearance(world, index, link) for index, link in enumerate(links)]
     if world.near is None:
 

@@ -13,8 +13,8 @@ A map is a YAML file beside an image (PGM, PNG or anything Pillow reads)::
 As ``map_server`` reads it: a pixel's value p (0-255, the mean of its colour channels) has
 occupancy ``(255 - p) / 255`` (``p / 255`` with ``negate: 1``); greyscale deeper than 8 bits
 (16-bit PNG, PGM past 255) on its own scale, 0-65535, as nav2's ``map_server`` reads any depth;
-row 0 of the image is the top of the map. Units become cm. The map's frame is the arm's: its base at (0, 0). Unknown cells
-count as occupied unless ``unknown="free"``.
+row 0 of the image is the top of the map. Units become cm. The map's frame is the arm's: its
+base at (0, 0). Unknown cells count as occupied unless ``unknown="free"``.
 
 Every occupied cell becomes part of an obstacle: runs of occupied cells along each row are
 merged, then runs spanning the same columns in consecutive rows, into axis-aligned boxes that
@@ -34,8 +34,10 @@ from jaxarm.model.world import World
 
 UNKNOWN = ("occupied", "free")
 # The modes Pillow opens greyscale deeper than 8 bits as (16-bit PNG; PGM past 255, which it
-# scales to 0-65535): read on that scale, never clipped to 8 bits.
-_DEEP_GREY = ("I;16", "I;16B", "I;16L", "I;16N", "I")
+# scales to 0-65535, as mode "I"): read on that scale, never clipped to 8 bits. Mode "I" from
+# another format (a TIFF's 32-bit integers) has no known scale: refused.
+_DEEP_GREY = ("I;16", "I;16B", "I;16L", "I;16N")
+_DEEP_GREY_AS_I = ("PPM", "PNG")  # formats whose mode "I" is greyscale scaled to 0-65535
 _KEYS = {"image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh", "mode"}
 
 
@@ -76,7 +78,7 @@ def load_map(path: str | pathlib.Path, unknown: str = "occupied") -> OccupancyMa
 
     Raises:
       ValueError: one line naming the file and the key: a missing or unreadable file or
-        image, an image of floating-point pixels or of pixels past 16 bits, a threshold
+        image, an image of floating-point or 32-bit integer pixels, a threshold
         outside [0, 1] or free above occupied, a resolution <= 0, a yaw other than 0, an
         unknown key or mode.
     """
@@ -89,6 +91,8 @@ def load_map(path: str | pathlib.Path, unknown: str = "occupied") -> OccupancyMa
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except OSError as error:
         raise ValueError(f"cannot read map {str(path)!r}: {error.strerror}") from None
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{path}: not a YAML map (not UTF-8 text: byte {error.start})") from None
     except yaml.YAMLError as error:
         raise ValueError(f"{path}: not a YAML map ({_yaml_problem(error)})") from None
     if not isinstance(data, dict):
@@ -158,12 +162,14 @@ def _occupancy(path, image_path: pathlib.Path, negate: int) -> np.ndarray:
     try:
         with Image.open(image_path) as image:
             mode = image.mode
-            if mode == "F":
-                raise ValueError(f"{path}: image {str(image_path)!r} holds floating-point "
-                                 "pixels (mode 'F'); save the map as 8- or 16-bit greyscale "
-                                 "or as colour")
-            full = 65535.0 if mode in _DEEP_GREY else 255.0
-            pixels = np.asarray(image if mode in _DEEP_GREY + ("L",) else image.convert("RGBA"),
+            deep = mode in _DEEP_GREY or (mode == "I" and image.format in _DEEP_GREY_AS_I)
+            if mode in ("F", "I") and not deep:
+                kind = {"F": "floating-point", "I": "32-bit integer"}[mode]
+                raise ValueError(f"{path}: image {str(image_path)!r} holds {kind} pixels (mode "
+                                 f"{mode!r}); save the map as 8- or 16-bit greyscale or as "
+                                 "colour")
+            full = 65535.0 if deep else 255.0
+            pixels = np.asarray(image if deep or mode == "L" else image.convert("RGBA"),
                                 dtype=np.float64)
     except FileNotFoundError:
         raise ValueError(f"{path}: image {str(image_path)!r} not found") from None
@@ -173,9 +179,6 @@ def _occupancy(path, image_path: pathlib.Path, negate: int) -> np.ndarray:
         pixels = pixels[..., :3].mean(axis=-1)
     if pixels.size == 0:
         raise ValueError(f"{path}: image {str(image_path)!r} is empty")
-    if pixels.min() < 0 or pixels.max() > full:  # a 32-bit integer image
-        raise ValueError(f"{path}: image {str(image_path)!r} (mode {mode!r}) has pixels "
-                         f"outside 0-{full:.0f}, got {pixels.min():.0f} to {pixels.max():.0f}")
     return pixels / full if negate else (full - pixels) / full
 
 

@@ -55,8 +55,12 @@ def clutter(problem: Problem, count: int, kind: str = "circles", size=(1.0, 3.0)
     if not isinstance(problem, Problem):
         raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
     one_of("kind", kind, CLUTTER_KINDS)
+    count = positive_int("count", count, minimum=1)
+    slot = "circle" if kind == "circles" else "polygon"  # boxes and triangles: polygon slots
     slots = problem.world.capacities()[0 if kind == "circles" else 1]  # the world's own
-    count = positive_int("count", count, minimum=1, maximum=MAX_SLOTS - slots)
+    if count > MAX_SLOTS - slots:
+        raise ValueError(f"count must be <= {MAX_SLOTS - slots} (a world holds {MAX_SLOTS} "
+                         f"{slot} slots and {problem.name!r} fills {slots}), got {count}")
     low, high = (float(v) for v in finite_vector("size", size, length=2))
     if not 0 < low <= high:
         raise ValueError(f"size must be (smallest, largest) with 0 < smallest <= largest (cm), "
@@ -98,8 +102,11 @@ def _path_postures(problem: Problem, clear_path):
     between two of them."""
     from jaxarm.model.path_functions import joint_path
 
-    if np.ndim(clear_path) == 0 and not isinstance(clear_path, str):  # 0: zeros
-        clear_path = np.full(problem.n_free, clear_path)
+    if np.ndim(clear_path) == 0 and not isinstance(clear_path, str):
+        if isinstance(clear_path, (bool, np.bool_)) or clear_path != 0:
+            raise ValueError(f"clear_path must be 0 (the path with no free coefficients) or "
+                             f"{problem.n_free} numbers, got {clear_path!r}")
+        clear_path = np.zeros(problem.n_free)
     x = finite_vector("clear_path", clear_path, problem.n_free)
     r = np.linspace(0.0, 1.0, CLEAR_PATH_SAMPLES)
     postures = np.asarray(joint_path(problem, x.astype(np.float32), r), dtype=np.float64)
