@@ -89,7 +89,7 @@ def test_sixteen_bit_greyscale_is_read_on_its_own_scale(tmp_path, suffix, negate
     image = Image.fromarray((shades * 257).astype(np.uint16))  # 255 * 257 = 65535
     image.save(tmp_path / f"sixteen{suffix}")
     with Image.open(tmp_path / f"sixteen{suffix}") as saved:
-        assert saved.mode == {".png": "I;16", ".pgm": "I"}[suffix]
+        assert saved.mode in {".png": ("I;16", "I"), ".pgm": ("I",)}[suffix]  # by Pillow
     for unknown in ("occupied", "free"):
         np.testing.assert_array_equal(load_map(sixteen, unknown=unknown).occupied,
                                       load_map(eight, unknown=unknown).occupied)
