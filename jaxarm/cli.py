@@ -234,8 +234,9 @@ def _add_timing_options(solve: argparse.ArgumentParser) -> None:
                             help=f"{name} limit ({unit}); the duration becomes the shortest "
                                  "that meets every limit given")
     timing.add_argument("--export", type=pathlib.Path, metavar="FILE",
-                        help="write the trajectory at --rate Hz (.csv: t, q, dq, ddq and tau "
-                             "columns when the arm's masses are known; .json)")
+                        help="write the trajectory at --rate Hz (.csv, or .csv.gz compressed: "
+                             "t, q, dq, ddq and tau columns when the arm's masses are known; "
+                             ".json)")
     timing.add_argument("--rate", type=float,
                         help=f"samples per second of --export ({EXPORT_RATE:g})")
 
@@ -347,13 +348,15 @@ def _check_outputs(args) -> None:
     """Every output file can be written and every figure's suffix is known, before any work."""
     from jaxarm.io.files import output_file
 
-    suffixes = {"plot": FIGURE_SUFFIXES, "gif": (".gif",), "export": (".csv", ".json")}
+    suffixes = {"plot": FIGURE_SUFFIXES, "gif": (".gif",),
+                "export": (".csv", ".csv.gz", ".json")}
     for name in ("json", "csv", "plot", "gif", "export", "output"):
         path = getattr(args, name, None)
         if path is None:
             continue
         flag = f"--{name}"
-        if name in suffixes and path.suffix.lower() not in suffixes[name]:
+        suffix = "".join(path.suffixes[-2:] if path.suffix == ".gz" else path.suffixes[-1:])
+        if name in suffixes and suffix.lower() not in suffixes[name]:
             raise ValueError(f"{flag} must end in {', '.join(suffixes[name])}, got {str(path)!r}")
         output_file(flag, path)
 
@@ -498,8 +501,8 @@ def _report_trajectory(args, problem, result, limits: dict) -> None:
     if not result.feasible:
         print("jaxarm: warning: the best path is not collision-free", file=sys.stderr)
     if args.export:
-        export = (trajectory.to_csv if args.export.suffix.lower() == ".csv"
-                  else trajectory.to_json)
+        export = (trajectory.to_json if args.export.suffix.lower() == ".json"
+                  else trajectory.to_csv)  # .csv or .csv.gz
         rate = _export_rows(duration, args.rate)
         _write(args.export, lambda path: export(path, rate=rate))
 

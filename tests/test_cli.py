@@ -1,5 +1,6 @@
 """The ``jaxarm`` command (``jaxarm.cli``)."""
 
+import gzip
 import json
 import os
 import pathlib
@@ -122,6 +123,11 @@ def test_cli_solve_times_the_best_path_and_exports_it(capsys, tmp_path):
                            "--export", str(tmp_path / "t.json"))
     assert code == 0 and "trajectory: T = 2.5 s (given)" in out
     assert json.loads((tmp_path / "t.json").read_text())["duration"] == 2.5
+    code, out, _ = run_cli(capsys, "solve", "paper-case-2", *sizes, "--duration", "2.5",
+                           "--export", str(tmp_path / "t.csv.gz"))  # compressed, by its name
+    assert code == 0
+    with gzip.open(tmp_path / "t.csv.gz", "rt") as compressed:
+        assert np.loadtxt(compressed, delimiter=",", skiprows=1)[-1, 0] == 2.5
 
 
 def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
@@ -179,7 +185,7 @@ def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
         (["solve", "open-space", "--max-torque", "20"], "--max-torque: open-space has no link"),
         (["solve", "paper-case-2", "--export", "t.csv"], "--export needs --duration or a --max-"),
         (["solve", "paper-case-2", "--duration", "1", "--export", "t.txt"],
-         "--export must end in .csv, .json, got 't.txt'"),
+         "--export must end in .csv, .csv.gz, .json, got 't.txt'"),
         (["solve", "paper-case-2", "--duration", "1", "--rate", "0", "--export", "t.csv"],
          "--rate must be > 0, got 0.0"),
         (["--coordinator", "127.0.0.1:1", "solve", "paper-case-2"],

@@ -66,11 +66,28 @@ def test_solve_takes_it_and_records_its_label(problem):
     (dict(ask=lambda self, key, state: (jnp.zeros((3, 3)), state)),
      r"ask of '\(1\+8\)-ES' must return x of shape \(8, 3\) \(population, n_free\), "
      r"got \(3, 3\)"),
+    (dict(ask=lambda self, key, state: jnp.zeros((8, 3))),
+     r"ask of '\(1\+8\)-ES' must return \(x, state\), got an array of shape \(8, 3\)"),
 ])
 def test_a_broken_optimiser_is_refused_with_one_line(problem, change, message):
     broken = type("Broken", (OnePlusLambdaES,), change)()
     with pytest.raises(ValueError, match=message):
         jaxarm.solve(problem, broken, n_iters=2)
+
+
+@pytest.mark.parametrize("constraint", ["death", "feasibility"])
+def test_a_path_measured_nan_is_never_kept_as_the_best(problem, constraint):
+    """An optimiser asking a non-finite path each iteration: NaN fitness and violation rank
+    last, never as a free path of fitness 0 (before, every restart that did not escape kept
+    the NaN path as its best)."""
+    class AsksNaN(OnePlusLambdaES):
+        def ask(self, key, state):
+            x, state = super().ask(key, state)
+            return x.at[0].set(jnp.nan), state
+
+    outcome = jaxarm.solve(problem, AsksNaN(), constraint=constraint, **SMALL).restarts
+    assert np.all(np.isfinite(np.asarray(outcome.best_x)))
+    assert not np.any(np.isnan(np.asarray(outcome.best_violation)))
 
 
 class FrozenES(NamedTuple):

@@ -35,6 +35,26 @@ def test_outputs_that_cannot_be_written_name_the_flag(tmp_path):
     assert not (tmp_path / "new").exists()  # checked, not created
 
 
+@pytest.mark.skipif(not pathlib.Path("/proc/self").is_dir(), reason="no /proc")
+def test_a_folder_where_no_file_can_be_made_is_named_before_any_work(tmp_path):
+    # /proc: a folder whose permissions say writable (to root) where no file can be created
+    with pytest.raises(ValueError, match=r"--csv '/proc/x.csv': cannot create a file in folder "
+                                         r"'/proc': "):
+        output_file("--csv", "/proc/x.csv")
+    assert output_file("--csv", tmp_path / "x.csv") == tmp_path / "x.csv"
+    assert list(tmp_path.iterdir()) == []  # the probe is gone
+
+
+def test_a_writer_that_fails_on_the_temporary_file_names_the_path_asked_for(tmp_path):
+    target = tmp_path / "r.csv"
+    with pytest.raises(FileNotFoundError) as raised:
+        with written(target) as path:
+            with written(path) as inner:  # a writer that writes through ``written`` too
+                raise FileNotFoundError(2, "No such file or directory", str(inner))
+    assert raised.value.filename == str(target)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_written_keeps_links_and_writes_devices_in_place(tmp_path):
     (tmp_path / "real.csv").write_text("old")
     (tmp_path / "link.csv").symlink_to(tmp_path / "real.csv")

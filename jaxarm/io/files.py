@@ -11,6 +11,7 @@ import contextlib
 import io
 import os
 import pathlib
+import tempfile
 import threading
 from typing import Iterator
 
@@ -30,6 +31,14 @@ def output_file(field: str, path) -> pathlib.Path:
     elif not os.access(_target(path).parent, os.W_OK | os.X_OK):
         raise ValueError(f"{field} {str(path)!r}: folder {str(_target(path).parent)!r} is not "
                          "writable")
+    else:  # what the permissions do not say (/proc, a read-only mount, root's access)
+        try:
+            descriptor, probe = tempfile.mkstemp(prefix=".probe.", dir=_target(path).parent)
+        except OSError as error:
+            raise ValueError(f"{field} {str(path)!r}: cannot create a file in folder "
+                             f"{str(_target(path).parent)!r}: {error.strerror}") from None
+        os.close(descriptor)
+        os.unlink(probe)
     return path
 
 
@@ -65,6 +74,10 @@ def written(path) -> Iterator[pathlib.Path]:
     try:
         yield temporary
         os.replace(temporary, target)
+    except OSError as error:  # named as the path asked for, not the temporary
+        if error.filename != str(temporary):
+            raise
+        raise type(error)(error.errno, error.strerror, str(path)) from None
     finally:
         temporary.unlink(missing_ok=True)
 

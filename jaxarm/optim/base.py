@@ -116,8 +116,12 @@ def rule_cost(measured: Measured, constraint) -> jax.Array:
     every colliding one, and less violation beats more: Deb's rules as one number);
     ``constraint``: ``constraint_index`` of either (data)."""
     feasibility = jnp.asarray(constraint) == constraint_index("feasibility")
-    return jnp.where(feasibility & (measured.ranked_violation > 0), measured.ranked_violation,
+    cost = jnp.where(feasibility & (measured.ranked_violation > 0), measured.ranked_violation,
                      -measured.fitness)
+    # A path measured NaN (non-finite coefficients from an optimiser, or ones that overflow) is
+    # the worst, never a free path of fitness 0 (NaN > 0 is false).
+    return jnp.where(jnp.isnan(measured.ranked_violation) | jnp.isnan(measured.fitness),
+                     jnp.inf, cost)
 
 
 def told_best(best: Best, x, cost, measured: Measured) -> tuple[Best, StepInfo]:

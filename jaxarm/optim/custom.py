@@ -184,6 +184,15 @@ def custom_swarm(config: CustomConfig, evaluate_fn, low, high, *, constraint) ->
                                  f"made")
         return after
 
+    def asked_pair(key, state):
+        """``ask``'s (x, state), or a ValueError where it gives back something else."""
+        pair = asked(key, state)
+        if not (isinstance(pair, tuple) and len(pair) == 2):
+            got = (f"an array of shape {tuple(pair.shape)}" if hasattr(pair, "shape")
+                   else type(pair).__name__)
+            raise ValueError(f"ask of {config.label!r} must return (x, state), got {got}")
+        return pair
+
     def checked(x):
         if getattr(x, "shape", None) != shape:
             raise ValueError(f"ask of {config.label!r} must return x of shape {shape} "
@@ -193,7 +202,7 @@ def custom_swarm(config: CustomConfig, evaluate_fn, low, high, *, constraint) ->
     def init(key):
         init_key, ask_key = jax.random.split(key)
         state = initial(init_key, low, high)
-        x, inner = asked(ask_key, state)
+        x, inner = asked_pair(ask_key, state)
         x, inner = checked(x), kept("ask", state, inner)
         return CustomState(inner, no_best(x)), x
 
@@ -204,7 +213,7 @@ def custom_swarm(config: CustomConfig, evaluate_fn, low, high, *, constraint) ->
         return CustomState(inner, best), info
 
     def ask(key, state: CustomState):
-        x, inner = asked(key, state.inner)
+        x, inner = asked_pair(key, state.inner)
         return CustomState(kept("ask", state.inner, inner), state.best), checked(x)
 
     return Optimizer(init=init, tell=tell, ask=ask, measure=evaluate_fn)
