@@ -278,6 +278,14 @@ def _clutter(args) -> None:
     print(problem.summary())
 
 
+def _as_flag(flag: str, check, *args):
+    """``check(*args)``, its ValueError about ``method`` naming ``flag`` instead."""
+    try:
+        return check(*args)
+    except ValueError as error:
+        raise ValueError(re.sub(r"^method\b", flag, str(error))) from None
+
+
 def _flag_names(message: str) -> str:
     """An error of ``jaxarm.clutter`` with its arguments named as the flags."""
     return re.sub(r"^(count|size|seed)\b", lambda m: f"--{m.group()}", message)
@@ -513,7 +521,7 @@ def _solve(args) -> None:
     from jaxarm.optim.methods import parse_method
 
     if args.method is not None:  # checked before the scenario is loaded
-        parse_method(args.method, args.constraint)
+        _as_flag("--method", parse_method, args.method, args.constraint)
         if args.improve and args.time_limit is None:
             raise ValueError(f"--improve needs --time-limit with --method {args.method} (a "
                              "named method runs once without one)")
@@ -570,7 +578,7 @@ def _study(args) -> None:
     from jaxarm.study import escape_study
 
     constraint = args.constraint or "death"
-    parse_methods(methods, constraint)  # names checked before any compilation
+    _as_flag("--methods", parse_methods, methods, constraint)  # before any compilation
     result = escape_study(problem, methods, n_restarts=args.restarts, n_iters=args.iters,
                           n_particles=args.particles, constraint=constraint, seed=args.seed,
                           chunk_size=args.chunk_size, checkpoint=args.checkpoint)

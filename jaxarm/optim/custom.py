@@ -120,8 +120,8 @@ class CustomConfig:
                              f"{self.optimizer.__name__}()")
         missing = [m for m in MEMBERS if not hasattr(self.optimizer, m)]
         if missing:
-            raise ValueError(f"method {self.optimizer!r} lacks {', '.join(missing)}: an "
-                             f"optimiser needs {', '.join(MEMBERS)}")
+            raise ValueError(f"method {type(self.optimizer).__name__} (an object) lacks "
+                             f"{', '.join(missing)}: an optimiser needs {', '.join(MEMBERS)}")
         label = self.optimizer.label
         if not isinstance(label, str) or not label.strip() or ":" in label or "," in label:
             raise ValueError(f"an optimiser's label must be a name without ':' or ',', "

@@ -152,8 +152,9 @@ def _config(name, method) -> PSOConfig | StrategyConfig | CustomConfig:
                          f"A-ring[inertia_end=0.4]")
     if preset_name not in PSO_METHODS:
         raise ValueError(f"method must be one of {PSO_METHODS}, optionally with fields in "
-                         f"brackets such as A-ring[inertia_end=0.4], or a PSOConfig, "
-                         f"got {method!r}")
+                         f"brackets such as A-ring[inertia_end=0.4] and a constraint rule "
+                         f"after ':' (A:feasibility), an evosax strategy ({PREFIX}CMA_ES), "
+                         f"a PSOConfig or an optimiser object, got {method!r}")
     preset, _, topology = preset_name.partition("-")
     config = pso.PRESETS[preset]._replace(
         topology=TOPOLOGY_SUFFIXES.get("-" + topology, "global"))
