@@ -334,6 +334,22 @@ def test_public_functions_take_any_sequence_of_numbers(case2, form):
 
 
 @pytest.mark.parametrize("mode", ["sampled", "certified"])
+def test_coefficients_that_overflow_float32_are_infinitely_colliding(case2, mode):
+    """Finite coefficients of 1e15 and up overflow in the path: the check measured NaN, now
+    violation +inf and fitness 0 (never free), and a certificate's clearance -inf."""
+    problem = case2.replace(collision=mode)
+    x = np.array([[1e15] * 3, [1e30] * 3, [66.7388, -28.1028, -9.8855]], np.float32)
+    evaluation = jaxarm.evaluate(problem, x)
+    np.testing.assert_array_equal(evaluation.violation[:2], np.inf)
+    np.testing.assert_array_equal(evaluation.fitness[:2], 0.0)
+    assert evaluation.violation[2] == 0 and evaluation.fitness[2] > 0  # the paper's free path
+    if mode == "certified":
+        certificate = jaxarm.certify(problem, x)
+        assert not np.any(certificate.free[:2]) and np.all(certificate.colliding[:2])
+        np.testing.assert_array_equal(certificate.clearance[:2], -np.inf)
+
+
+@pytest.mark.parametrize("mode", ["sampled", "certified"])
 def test_evaluate_is_fitness_violation_and_distance_in_one_pass(case2, rng, mode):
     problem = case2.replace(collision=mode)
     x = rng.uniform(-200, 200, (2, 40, 3)).astype(np.float32)

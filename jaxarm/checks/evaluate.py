@@ -120,7 +120,10 @@ def _check_rows(spec: ProblemSpec, arrays: ProblemArrays, rows,
     if spec.with_limits:  # joint limits: their excess (rad) adds to the violation
         limits = limit_rows(spec, arrays, rows)
         violation = violation + limits.excess
-    fitness = jnp.where(violation == 0, 1.0 / distance, 0.0).astype(rows.dtype)  # NaN: 0
+    # Coefficients so large that float32 overflows in the path (about 1e15 and up) measure NaN:
+    # infinitely colliding, as no number can say how far.
+    violation = jnp.where(jnp.isnan(violation), jnp.inf, violation)
+    fitness = jnp.where(violation == 0, 1.0 / distance, 0.0).astype(rows.dtype)
     return Evaluation(fitness=fitness, violation=violation, distance=distance), check, limits
 
 
@@ -208,7 +211,8 @@ def _evaluate_and_certify(spec: ProblemSpec, arrays: ProblemArrays, rows):
         colliding = colliding | limits.witness
         free = free & (limits.excess == 0)
     none = jnp.full(rows.shape[:1], -1, jnp.int32)  # link and obstacle: ``certify`` finds them
-    return evaluation, Certificate(free, colliding, check.clearance,
+    clearance = jnp.where(jnp.isnan(check.clearance), -jnp.inf, check.clearance)
+    return evaluation, Certificate(free, colliding, clearance,
                                    check.exhausted & ~colliding, check.witness_r, none, none,
                                    none)
 
@@ -228,7 +232,8 @@ def evaluate_paths(problem: Problem, x) -> Evaluation:
 
     Returns:
       ``Evaluation`` of arrays of shape (...,): ``fitness`` (paper eq. 17), ``violation``
-      (>= 0, 0 iff collision-free), ``distance`` (the joint travelling distance, eq. 5).
+      (>= 0, 0 iff collision-free; +inf where float32 overflows in the path), ``distance``
+      (the joint travelling distance, eq. 5).
 
     Examples:
       >>> problem = jaxarm.load_scenario("paper-case-2")
