@@ -134,7 +134,8 @@ def test_what_does_not_fit_the_call_is_refused(problem):
         jaxarm.solve(problem, object())
     with pytest.raises(ValueError, match=r"OnePlusLambdaES is a class: pass an instance"):
         jaxarm.solve(problem, OnePlusLambdaES)
-    with pytest.raises(ValueError, match=r"method Half \(an object\) lacks label, population: an optimiser needs"):
+    with pytest.raises(ValueError, match=r"method Half \(an object\) lacks label, population: "
+                                         r"an optimiser needs"):
         jaxarm.solve(problem, type("Half", (), {"init": 0, "ask": 0, "tell": 0})())
     with pytest.raises(ValueError, match=r"must not be a built-in method's name, got 'A'"):
         jaxarm.solve(problem, type("Named", (OnePlusLambdaES,), {"label": "A"})())
