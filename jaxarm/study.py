@@ -189,8 +189,8 @@ class Study(NamedTuple):
             lines.append(
                 f"| {s['method']} | {s['constraint']} | {s['escaped']}/{s['n_restarts']} | "
                 f"{s['escape_rate']:.1%} [{s['ci95_low']:.1%}, {s['ci95_high']:.1%}] | "
-                f"{fmt(s['escape_iter_median'], '.0f')} [{fmt(s['escape_iter_q1'], '.0f')}, "
-                f"{fmt(s['escape_iter_q3'], '.0f')}] | {fmt(s['fitness_median'], '.4f')} / "
+                f"{fmt(s['escape_iter_median'], 'g')} [{fmt(s['escape_iter_q1'], 'g')}, "
+                f"{fmt(s['escape_iter_q3'], 'g')}] | {fmt(s['fitness_median'], '.4f')} / "
                 f"{fmt(s['fitness_best'], '.4f')} | "
                 f"{s['seconds'] - s['compile_seconds']:.1f} | {s['compile_seconds']:.1f} |"
             )

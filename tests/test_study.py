@@ -126,6 +126,10 @@ def test_study_summaries_tables_and_records(case2):
     table = result.table()
     assert table.count("\n") == 3 and "A:feasibility" in table
     assert f"escape rate, {result.collision} check" in table.splitlines()[0]
+    quartiles = dict(summary, escape_iter_median=25.5, escape_iter_q1=21.5, escape_iter_q3=30.25)
+    with pytest.MonkeyPatch.context() as patch:  # as the summary has them, not rounded
+        patch.setattr(type(result.methods[0]), "summary", lambda self: quartiles)
+        assert "| 25.5 [21.5, 30.25] |" in result.table().splitlines()[2]
     assert json.loads(result.to_json())["methods"][1]["method"] == "C:feasibility"
     records = result.records()
     assert len(records) == 12 and records[0]["restart"] == 0
