@@ -30,7 +30,7 @@ from jaxarm.checks.evaluate import deepest_contact, fitness
 from jaxarm.checks.witness import clearance_along
 from jaxarm.model.arm import joint_positions
 from jaxarm.model.path_functions import joint_path
-from jaxarm.model.problem import Problem
+from jaxarm.model.problem import Problem, check_problem
 
 OBSTACLE_STYLE = dict(facecolor="#c9c9c9", edgecolor="#555555", linewidth=1.0, zorder=1)
 
@@ -109,6 +109,7 @@ def plot_motion(problem: Problem, x, n_postures: int = 9, ax=None, title: str | 
     contact (``evaluate.deepest_contact``, as ``Result.summary`` names it) and the obstacle
     it hits, in red.
     """
+    check_problem(problem)
     figure, ax = _axes(ax)
     draw_world(ax, problem.world)
     r = np.linspace(0.0, 1.0, 201)
@@ -171,6 +172,7 @@ def plot_clearance(problem: Problem, x, n_points: int = 401, ax=None,
     """Each link's exact distance to its nearest obstacle along the path ``x`` (shape
     (n_free,)) against r, with the margin (and 0) dashed: where a line dips below, that link
     collides; the deepest contact (``evaluate.deepest_contact``) is marked."""
+    check_problem(problem)
     n_points = positive_int("n_points", n_points, minimum=2)
     figure, ax = _axes(ax, (5.5, 3.5))
     r = np.linspace(0.0, 1.0, n_points)
@@ -198,6 +200,7 @@ def plot_clearance(problem: Problem, x, n_points: int = 401, ax=None,
 
 def plot_joint_angles(problem: Problem, x, ax=None, title: str | None = None):
     """theta_k(r) for every joint of the path ``x``."""
+    check_problem(problem)
     figure, ax = _axes(ax, (5.5, 3.5))
     r = np.linspace(0.0, 1.0, 201)
     theta = np.asarray(joint_path(problem, _one_path(problem, x), r))
@@ -326,6 +329,7 @@ def plot_feasible_map(problem: Problem, x, dims=(0, 1), *, resolution: int = 121
       best: optional second point to mark (a swarm's best, say), shape (n_free,).
       point_label: the legend's name for ``x``.
     """
+    check_problem(problem)
     x = _one_path(problem, x).astype(np.float64)
     i, j = dims
     if len(set(dims)) != 2 or not all(0 <= d < problem.n_free for d in dims):
@@ -411,6 +415,7 @@ def plot_profiles(trajectory, *, max_velocity=None, max_acceleration=None, max_t
 def animate(problem: Problem, x, path, n_frames: int = 60, fps: int = 20) -> None:
     """Write a GIF of the motion ``x`` (shape (n_free,)) to ``path`` (a .gif file): the arm at
     ``n_frames`` equally spaced r, shown at ``fps`` frames per second."""
+    check_problem(problem)
     if str(path).lower()[-4:] != ".gif":
         raise ValueError(f"path must end in .gif, got {str(path)!r}")
     positive_int("n_frames", n_frames, minimum=2)

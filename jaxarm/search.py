@@ -18,7 +18,7 @@ from jaxarm.choices import (DEFAULT_CONSTRAINT, DEFAULT_METHODS, DEFAULT_RESTART
                             DEFAULT_TIME_LIMIT, MAX_DEGREE)
 from jaxarm.escalation import Stage, escalate
 from jaxarm.io.files import text_writer, write_or_return
-from jaxarm.model.problem import Problem
+from jaxarm.model.problem import Problem, check_problem
 from jaxarm.optim import evosax_adapter, pso
 from jaxarm.optim.custom import CustomConfig, RecordedOptimizer
 from jaxarm.optim.methods import parse_method, swarm_size
@@ -325,6 +325,7 @@ def solve(problem: Problem, method=None, *, n_particles: int | None = None,
       (True, True, (3,))
     """
     began = time.perf_counter()
+    check_problem(problem)
     variants, n_restarts = _variants(method, constraint, n_restarts, init_particles)
     constraint = variants[0].constraint
     n_particles = swarm_size(variants, n_particles, N_PARTICLES)

@@ -26,7 +26,7 @@ from jaxarm._validate import check_search, positive_int
 from jaxarm.checks.evaluate import fitness
 from jaxarm.io.checkpoints import SavedRestarts, StudyCheckpoint, study_identity
 from jaxarm.io.files import text_writer, write_or_return
-from jaxarm.model.problem import Problem
+from jaxarm.model.problem import Problem, check_problem
 from jaxarm.optim.methods import Variant, parse_methods, swarm_size
 from jaxarm.optim.restarts import (
     N_ITERS,
@@ -295,6 +295,7 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
       >>> [(m.variant.label, m.n_restarts) for m in study.methods]
       [('A', 4), ('B', 4)]
     """
+    check_problem(problem)
     variants = parse_methods(methods, constraint)
     n_particles = swarm_size(variants, n_particles, N_PARTICLES)
     n_restarts = positive_int("n_restarts", n_restarts)

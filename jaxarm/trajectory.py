@@ -34,7 +34,7 @@ from numpy.polynomial import polynomial as poly
 from jaxarm._validate import finite_scalar, finite_vector, positive_scalar, representable
 from jaxarm.io.files import text_writer, write_or_return
 from jaxarm.model import dynamics, path
-from jaxarm.model.problem import Problem
+from jaxarm.model.problem import Problem, check_problem
 
 TORQUE_GRID = 4001  # points of r for the torque search
 TORQUE_REFINE = (8, 65, 3)  # best points refined, points per local grid, rounds
@@ -72,9 +72,7 @@ class Trajectory:
     """
 
     def __init__(self, problem: Problem, x, duration: float):
-        if not isinstance(problem, Problem):
-            raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
-        self.problem = problem
+        self.problem = check_problem(problem)
         self.x = representable("x", finite_vector("x", x, problem.n_free))
         self.duration = positive_scalar("duration", duration)
         if self.duration < MIN_DURATION:

@@ -199,6 +199,35 @@ def test_colliding_start_names_the_link_and_obstacle():
                        world=jaxarm.World(circles=[(75.0, 0.0, 2.0)]))
 
 
+def test_a_scenario_name_where_a_problem_goes_says_how_to_load_it():
+    from jaxarm import plot
+
+    calls = [lambda: jaxarm.solve("paper-case-2"),
+             lambda: jaxarm.fitness("paper-case-2", [0, 0, 0]),
+             lambda: jaxarm.certify("paper-case-2", [0, 0, 0]),
+             lambda: jaxarm.escape_study("paper-case-2", ["A"], n_restarts=2),
+             lambda: jaxarm.min_duration("paper-case-2", [0, 0, 0], max_velocity=1.0),
+             lambda: plot.plot_motion("paper-case-2", [0, 0, 0])]
+    for call in calls:
+        with pytest.raises(ValueError, match=r"problem must be a jaxarm.Problem, got "
+                                             r"'paper-case-2': load a scenario with "
+                                             r"jaxarm.load_scenario\('paper-case-2'\)"):
+            call()
+
+
+def test_a_field_problem_has_not_is_named_with_the_nearest(case2):
+    with pytest.raises(ValueError, match=r"Problem has no field 'samples'; did you mean "
+                                         r"'n_samples'\?"):
+        case2.replace(samples=101)
+    with pytest.raises(jaxarm.ScenarioError, match=r"paper-case-2.toml: Problem has no field "
+                                                   r"'colision'; did you mean 'collision'\?"):
+        jaxarm.load_scenario("paper-case-2", colision="sampled")
+    for not_a_name in (2, None):
+        with pytest.raises(jaxarm.ScenarioError, match=r"scenario must be a shipped name or a "
+                                                       rf"path to a .toml file, got {not_a_name}"):
+            jaxarm.load_scenario(not_a_name)
+
+
 def test_bad_parameters_are_rejected(case2):
     with pytest.raises(ValueError, match=r"x must have shape \(\.\.\., 3\).* got shape \(4,\)"):
         jaxarm.fitness(case2, np.zeros(4))

@@ -25,7 +25,8 @@ from jaxarm.checks import collision as collision_lib
 from jaxarm.checks import joint_limits as limits_lib
 from jaxarm.checks import witness as witness_lib
 from jaxarm.model import path
-from jaxarm.model.problem import Problem, ProblemArrays, ProblemSpec, as_params
+from jaxarm.model.problem import (Problem, ProblemArrays, ProblemSpec, as_params,
+                                  check_problem)
 
 
 class Evaluation(NamedTuple):
@@ -250,9 +251,9 @@ def evaluate_paths(problem: Problem, x) -> Evaluation:
 def _evaluated(problem: Problem, x) -> Evaluation:
     """``evaluate`` of x (..., n_free) in one of a few compiled programs per problem spec (a
     nested ``jax.jit`` inside a caller's trace)."""
+    x = as_params(problem, x)  # first: it names a problem that is not one
     return on_padded_rows(functools.partial(_evaluate_and_certify, problem.spec,
-                                            problem.device_arrays()),
-                          as_params(problem, x))[0]
+                                            problem.device_arrays()), x)[0]
 
 
 
@@ -340,6 +341,7 @@ def certify(problem: Problem, x) -> Certificate:
       >>> bool(certificate.free), bool(certificate.colliding)
       (True, False)
     """
+    check_problem(problem)
     return _certified_with_witness(problem, x)[0]
 
 
@@ -376,6 +378,7 @@ def collision_witness(problem: Problem, x) -> witness_lib.Witness:
       >>> int(witness.link), int(witness.obstacle), bool(witness.distance < 0)
       (1, 0, True)
     """
+    check_problem(problem)
     if problem.collision == "certified":
         return _certified_with_witness(problem, x)[1]
     x = as_params(problem, x)
@@ -390,6 +393,7 @@ def deepest_contact(problem: Problem, x) -> witness_lib.Witness:
     those find no contact (one thinner than their spacing), ``collision_witness``'s: what a
     summary or a figure shows of a colliding path, without compiling a check when the path's
     contact is wide enough to see. NaN / -1 where neither finds one."""
+    check_problem(problem)
     r = np.linspace(0.0, 1.0, 4 * (problem.n_samples - 1) + 1)
     distance, obstacle, other = witness_lib.clearance_along(problem, x, r)
     at, link = np.unravel_index(np.argmin(distance), distance.shape)

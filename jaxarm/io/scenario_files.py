@@ -50,6 +50,7 @@ has a value (``units`` and ``capacities`` included); loading the file gives back
 from __future__ import annotations
 
 import importlib.resources
+import os
 import pathlib
 import re
 import tomllib
@@ -146,9 +147,9 @@ def obstacle_names(name_or_path: str | pathlib.Path) -> dict[str, str]:
 
 def _read(name_or_path) -> tuple[str, str, pathlib.Path]:
     """The scenario's text, its name in messages, and the folder its maps are relative to."""
-    if not str(name_or_path).strip():
+    if not isinstance(name_or_path, (str, os.PathLike)) or not str(name_or_path).strip():
         raise ScenarioError(f"scenario must be a shipped name or a path to a .toml file, got "
-                            f"{str(name_or_path)!r}; shipped scenarios: {', '.join(available())}")
+                            f"{name_or_path!r}; shipped scenarios: {', '.join(available())}")
     candidate = pathlib.Path(name_or_path)
     if candidate.suffix == ".toml" or candidate.exists():
         try:

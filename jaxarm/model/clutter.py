@@ -14,7 +14,7 @@ import numpy as np
 
 from jaxarm._validate import check_seed, finite_vector, positive_int
 from jaxarm.choices import CLUTTER_KINDS, one_of
-from jaxarm.model.problem import MAX_SLOTS, Problem
+from jaxarm.model.problem import MAX_SLOTS, Problem, check_problem
 from jaxarm.model.world import OBSTACLE_KINDS, World
 
 CLEAR_PATH_SAMPLES = 1001  # instants of ``clear_path`` kept clear
@@ -52,8 +52,7 @@ def clutter(problem: Problem, count: int, kind: str = "circles", size=(1.0, 3.0)
       >>> jaxarm.clutter(problem, 40, "triangles", size=(1.0, 2.0), seed=1).world.n_obstacles
       40
     """
-    if not isinstance(problem, Problem):
-        raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
+    check_problem(problem)
     one_of("kind", kind, CLUTTER_KINDS)
     count = positive_int("count", count, minimum=1)
     slot = "circle" if kind == "circles" else "polygon"  # boxes and triangles: polygon slots

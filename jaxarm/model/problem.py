@@ -9,7 +9,9 @@ only in data share one compiled program. What is computed of its paths lives in
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import functools
+import pathlib
 from typing import NamedTuple
 
 import jax
@@ -353,7 +355,14 @@ class Problem:
             self.collision))
 
     def replace(self, **changes) -> "Problem":
-        """A copy with some fields changed (and validated again)."""
+        """A copy with some fields changed (and validated again); a ValueError naming a field
+        ``Problem`` does not have."""
+        fields = [field.name for field in dataclasses.fields(self) if field.init]
+        for name in changes:
+            if name not in fields:
+                close = difflib.get_close_matches(name, fields, n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else f"; its fields: {fields}"
+                raise ValueError(f"Problem has no field {name!r}{hint}")
         return dataclasses.replace(self, **changes)
 
     def summary(self) -> str:
@@ -460,9 +469,19 @@ def _describe(bound) -> str:
     return f"{bound:g}" if np.ndim(bound) == 0 else str(list(bound))
 
 
+def check_problem(problem) -> Problem:
+    """``problem``, or a ValueError saying what it is instead (a scenario's name: how to load
+    it)."""
+    if isinstance(problem, Problem):
+        return problem
+    if isinstance(problem, (str, pathlib.PurePath)):
+        raise ValueError(f"problem must be a jaxarm.Problem, got {str(problem)!r}: load a "
+                         f"scenario with jaxarm.load_scenario({str(problem)!r})")
+    raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
+
+
 def as_params(problem: Problem, x) -> jax.Array:
-    if not isinstance(problem, Problem):
-        raise ValueError(f"problem must be a jaxarm.Problem, got {type(problem).__name__}")
+    check_problem(problem)
     if not isinstance(x, jax.core.Tracer):  # checked on the host (no small programs to compile)
         try:
             values = np.asarray(x)
