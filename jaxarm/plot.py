@@ -68,9 +68,17 @@ def draw_world(ax, world) -> None:
 def _one_path(problem: Problem, x) -> np.ndarray:
     x = np.asarray(x, dtype=np.float32)
     if x.shape != (problem.n_free,):
-        raise ValueError(f"x must be one path of shape ({problem.n_free},), got shape {x.shape}; "
-                         "pick one row of a batch")
+        batch = "; pick one row of a batch" if x.ndim > 1 and x.shape[-1] == problem.n_free else ""
+        raise ValueError(f"x must be one path of shape ({problem.n_free},), got shape "
+                         f"{x.shape}{batch}")
     return x
+
+
+def _coefficient_name(problem: Problem, index: int) -> str:
+    """Free coefficient ``index``'s name as the paper writes it: a61 is joint 1's a6 (x holds
+    them by power, then joint); a6,11 past nine joints."""
+    power, joint = divmod(index, problem.n_joints)
+    return f"a{6 + power}{',' if problem.n_joints > 9 else ''}{joint + 1}"
 
 
 # Compiled: op by op, a solve's figures compiled many tiny programs in every new process, most
@@ -356,8 +364,8 @@ def plot_feasible_map(problem: Problem, x, dims=(0, 1), *, resolution: int = 121
     if best is not None:
         best = _one_path(problem, best)
         ax.plot(best[i], best[j], "*", color="white", mec="black", ms=12, label="best")
-    ax.set_xlabel(f"free coefficient {i}")
-    ax.set_ylabel(f"free coefficient {j}")
+    ax.set_xlabel(f"{_coefficient_name(problem, i)} (free coefficient {i})")
+    ax.set_ylabel(f"{_coefficient_name(problem, j)} (free coefficient {j})")
     ax.legend(fontsize=8, loc="upper right")
     free = float(np.mean(values > 0))
     ax.set_title(title or f"{problem.name}: slice ({i}, {j}), {free:.1%} of it free")

@@ -99,6 +99,18 @@ def test_feasible_map_colours_free_paths_and_greys_colliding_ones(case2):
     assert {t.get_text() for t in ax.get_legend().get_texts()} == {"slice through this path",
                                                                "best"}
     assert f"{np.mean(expected > 0):.1%} of it free" in ax.get_title()
+    # the paper's names: a61 is joint 1's a6, a63 joint 3's
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("a61 (free coefficient 0)",
+                                                  "a63 (free coefficient 2)")
+    deeper = case2.replace(degree=8)  # x by power, then joint: index 4 is joint 2's a7
+    figure = plot.plot_feasible_map(deeper, np.zeros(9), dims=(4, 8), resolution=2)
+    assert (figure.axes[0].get_xlabel(), figure.axes[0].get_ylabel()) == (
+        "a72 (free coefficient 4)", "a83 (free coefficient 8)")
+    with pytest.raises(ValueError, match=r"x must be one path of shape \(3,\), got shape "
+                                         r"\(2,\)$"):
+        plot.plot_motion(case2, [1.0, 2.0])
+    with pytest.raises(ValueError, match=r"got shape \(2, 3\); pick one row of a batch"):
+        plot.plot_motion(case2, np.zeros((2, 3)))
     for kwargs, message in ((dict(dims=(1, 1)), "dims must be two different indices"),
                             (dict(dims=(0, 3)), "dims must be two different indices"),
                             (dict(resolution=1), "resolution must be >= 2"),

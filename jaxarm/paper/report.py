@@ -221,7 +221,8 @@ def _introduction(report: _Report, quick: bool, workers: int, suite: list, degre
         "(see *How the scenarios were reconstructed* below). Fitness values of published "
         "coefficient sets do not depend on the obstacles; feasibility verdicts and escape rates "
         "do.", "",
-        f"Times include compilation. {_workers_sentence(workers)}", "",
+        f"Section times include compilation; the study tables give run and compile times "
+        f"apart. {_workers_sentence(workers)}", "",
     )
     left_out = ([] if suite else ["the shipped suite (`--suite`)"]) + (
         [] if degrees else ["the path degrees compared (`--degrees`)"])
