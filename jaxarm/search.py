@@ -325,7 +325,6 @@ def solve(problem: Problem, method=None, *, n_particles: int | None = None,
       (True, True, (3,))
     """
     began = time.perf_counter()
-    check_problem(problem)
     variants, n_restarts = _variants(method, constraint, n_restarts, init_particles)
     constraint = variants[0].constraint
     n_particles = swarm_size(variants, n_particles, N_PARTICLES)
@@ -334,7 +333,7 @@ def solve(problem: Problem, method=None, *, n_particles: int | None = None,
     if refine not in (False, True, "all"):
         raise ValueError(f"refine must be False, True or 'all', got {refine!r}")
     limit, max_stages = _stage_limits(method, time_limit, max_stages, improve, progress)
-    given = _check_init_particles(problem, init_particles, n_particles)
+    given = _check_init_particles(check_problem(problem), init_particles, n_particles)
     found = escalate(problem, variants, constraint, n_particles=n_particles, n_iters=n_iters,
                      n_restarts=n_restarts, seed=seed, init_particles=given, time_limit=limit,
                      max_stages=max_stages, improve=improve, progress=progress, began=began)
