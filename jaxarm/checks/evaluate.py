@@ -341,14 +341,13 @@ def certify(problem: Problem, x) -> Certificate:
       >>> bool(certificate.free), bool(certificate.colliding)
       (True, False)
     """
-    check_problem(problem)
     return _certified_with_witness(problem, x)[0]
 
 
 def _certified_with_witness(problem: Problem, x) -> tuple[Certificate, witness_lib.Witness]:
     """``certify`` of x, and its witness with the distance there (``collision_witness``)."""
+    x = as_params(problem, x)  # first: it names a problem that is not one
     spec = problem.spec._replace(collision="certified")
-    x = as_params(problem, x)
     certificate = on_padded_rows(functools.partial(_evaluate_and_certify, spec,
                                                    problem.device_arrays()),
                                  x)[1]
@@ -378,10 +377,9 @@ def collision_witness(problem: Problem, x) -> witness_lib.Witness:
       >>> int(witness.link), int(witness.obstacle), bool(witness.distance < 0)
       (1, 0, True)
     """
-    check_problem(problem)
+    x = as_params(problem, x)  # first: it names a problem that is not one
     if problem.collision == "certified":
         return _certified_with_witness(problem, x)[1]
-    x = as_params(problem, x)
     r = on_padded_rows(functools.partial(witness_lib.deepest_sample_rows, problem.spec,
                                          problem.device_arrays()), x)
     return witness_lib.contacts(problem, x, r)

@@ -55,8 +55,9 @@ def clutter(problem: Problem, count: int, kind: str = "circles", size=(1.0, 3.0)
     check_problem(problem)
     one_of("kind", kind, CLUTTER_KINDS)
     count = positive_int("count", count, minimum=1)
-    slot = "circle" if kind == "circles" else "polygon"  # boxes and triangles: polygon slots
-    slots = problem.world.capacities()[0 if kind == "circles" else 1]  # the world's own
+    # boxes and triangles take polygon slots; the world's own of that kind
+    slot, index = ("circle", 0) if kind == "circles" else ("polygon", 1)
+    slots = problem.world.capacities()[index]
     if count > MAX_SLOTS - slots:
         raise ValueError(f"count must be <= {MAX_SLOTS - slots} (a world holds {MAX_SLOTS} "
                          f"{slot} slots and {problem.name!r} fills {slots}), got {count}")
