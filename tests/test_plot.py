@@ -1,5 +1,7 @@
 """Figures (``jaxarm.plot``)."""
 
+import types
+
 import numpy as np
 import pytest
 from sizes import SMALL
@@ -106,6 +108,9 @@ def test_feasible_map_colours_free_paths_and_greys_colliding_ones(case2):
     figure = plot.plot_feasible_map(deeper, np.zeros(9), dims=(4, 8), resolution=2)
     assert (figure.axes[0].get_xlabel(), figure.axes[0].get_ylabel()) == (
         "a72 (free coefficient 4)", "a83 (free coefficient 8)")
+    ten_joints = types.SimpleNamespace(n_joints=10)  # past nine joints, a comma between
+    assert [plot._coefficient_name(ten_joints, i) for i in (0, 9, 10, 25)] == [
+        "a6,1", "a6,10", "a7,1", "a8,6"]
     with pytest.raises(ValueError, match=r"x must be one path of shape \(3,\), got shape "
                                          r"\(2,\)$"):
         plot.plot_motion(case2, [1.0, 2.0])
