@@ -233,8 +233,10 @@ def test_a_block_few_links_reach_is_read_by_those_alone(rng, monkeypatch, kind):
     assert reads(np.zeros(0, np.int32)).shape == (0,)  # no links: every block skipped
 
 
-@pytest.mark.parametrize("kind, collision", [("triangles", "sampled"), ("triangles", "certified"),
-                                             ("circles", "certified")])
+# The certified cases compile two certified checks each: in the full suite alone (``slow``).
+@pytest.mark.parametrize("kind, collision", [
+    ("triangles", "sampled"), pytest.param("triangles", "certified", marks=pytest.mark.slow),
+    pytest.param("circles", "certified", marks=pytest.mark.slow)])
 def test_links_that_read_a_block_alone_get_the_bits_of_every_link_reading_it(
         rng, monkeypatch, kind, collision):
     """Chunks of 16 links (the blocks few lists reach read by those links alone; circles too,
@@ -284,8 +286,9 @@ def mixed_problem(rng, collision="certified"):
         circles=circles.circles, polygons=triangles.polygons))
 
 
-@pytest.mark.parametrize("kind, count", [("circles", 300), ("triangles", 300), ("mixed", 200),
-                                         ("triangles", 40)])  # 40: one list of every slot
+@pytest.mark.parametrize("kind, count", [  # 40: one list of every slot
+    ("circles", 300), pytest.param("triangles", 300, marks=pytest.mark.slow),
+    pytest.param("mixed", 200, marks=pytest.mark.slow), ("triangles", 40)])
 def test_the_nearest_listed_slot_is_the_nearest_obstacle_for_shapely(rng, monkeypatch, kind,
                                                                      count):
     """``over_blocks``' "nearest" of exact separations: where a link's nearest obstacle lies
@@ -340,7 +343,7 @@ def test_the_nearest_listed_slot_is_the_nearest_obstacle_for_shapely(rng, monkey
     assert 100 < near < ARM.n_joints * 400  # links near an obstacle, and others not
 
 
-@pytest.mark.parametrize("kind", ["triangles", "mixed"])
+@pytest.mark.parametrize("kind", ["triangles", pytest.param("mixed", marks=pytest.mark.slow)])
 def test_clearances_by_the_nearest_slot_have_the_values_and_gradients_of_every_block(rng, kind):
     """``link_clearance_bounds(by_nearest=True)`` (refine's barrier): the same values (bit for
     bit undifferentiated; differentiated, from the nearest pass, within float32 rounding) and
@@ -420,8 +423,9 @@ def test_the_sampled_check_gives_the_same_verdicts_with_and_without_tables(
     assert 0.2 < np.mean(np.asarray(near.fitness) > 0) < 0.99
 
 
-@pytest.mark.parametrize("count, kind", [(nearby.BROAD_PHASE_WORK + 1, "circles"),
-                                         (nearby.BROAD_PHASE_WORK // 3 + 1, "triangles")])
+@pytest.mark.parametrize("count, kind", [
+    (nearby.BROAD_PHASE_WORK + 1, "circles"),
+    pytest.param(nearby.BROAD_PHASE_WORK // 3 + 1, "triangles", marks=pytest.mark.slow)])
 def test_the_certified_check_gives_the_same_verdicts_with_and_without_tables(rng, count, kind):
     """The grid's lists (circles) and one list of every slot (a few dozen triangles)."""
     problem = corridor_problem(rng, count, kind, margin=0.5)
@@ -435,10 +439,10 @@ def test_the_certified_check_gives_the_same_verdicts_with_and_without_tables(rng
     assert np.asarray(near.pieces).sum() > 0  # the bisection ran
 
 
-@pytest.mark.parametrize("count, kind, collision", [(300, "circles", "certified"),
-                                                    (300, "triangles", "certified"),
-                                                    (300, "triangles", "sampled"),
-                                                    (60, "triangles", "certified")])
+@pytest.mark.parametrize("count, kind, collision", [
+    (300, "circles", "certified"), (300, "triangles", "certified"),
+    pytest.param(300, "triangles", "sampled", marks=pytest.mark.slow),
+    (60, "triangles", "certified")])
 def test_certified_free_among_hundreds_of_obstacles_is_free_for_the_dense_oracle(
         rng, count, kind, collision):
     """No path certified free comes closer than the margin at any of 20,001 times (shapely);
@@ -458,7 +462,7 @@ def test_certified_free_among_hundreds_of_obstacles_is_free_for_the_dense_oracle
     assert np.all(free[rows][clear])
 
 
-@pytest.mark.parametrize("check", ["sampled", "certified"])
+@pytest.mark.parametrize("check", ["sampled", pytest.param("certified", marks=pytest.mark.slow)])
 def test_one_list_of_every_circle_and_polygon_gives_the_verdicts_of_every_slot(rng, check):
     """A world of 40 circles and 10 triangles reads one list of every slot: its padding
     circles lie more than 1e4 cm beyond the arm's reach, and each check's verdicts (and
@@ -554,6 +558,28 @@ def test_distinct_blocks_are_found_whether_their_keys_collide_or_not(rng):
     colliding = nearby._distinct_rows(blocks, weights=np.zeros(3, np.uint64))  # one key for all
     np.testing.assert_array_equal(colliding[0], first)
     np.testing.assert_array_equal(colliding[1], rows)
+
+
+@pytest.mark.parametrize("first_empty", [0, 5, None])
+def test_blocks_of_padding_alone_are_numbered_as_every_block_is(rng, first_empty):
+    """``_distinct_blocks`` skips hashing the blocks of padding alone (a list's slots come
+    first, so a block whose first slot is padding holds nothing else) and numbers every block
+    as ``_distinct_rows`` does: with the first such block first, in the middle, or none."""
+    n_slots = 6
+    blocks = np.sort(rng.integers(0, n_slots + 1, (400, 2)), axis=1).astype(np.int32)
+    blocks[:, 1] = np.where(blocks[:, 0] == n_slots, n_slots, blocks[:, 1])
+    blocks[:5] = [0, 1]  # no padding before row 5, unless first_empty says otherwise
+    if first_empty is None:
+        blocks = blocks[blocks[:, 0] < n_slots]
+    else:
+        blocks[first_empty] = n_slots
+    assert np.any(blocks[:, 0] == n_slots) == (first_empty is not None)
+    expected = nearby._distinct_rows(blocks)
+    found = nearby._distinct_blocks(blocks, n_slots)
+    np.testing.assert_array_equal(found[0], expected[0])
+    np.testing.assert_array_equal(found[1], expected[1])
+    everything_padding = np.full((7, 2), n_slots, np.int32)
+    np.testing.assert_array_equal(nearby._distinct_blocks(everything_padding, n_slots)[1], 0)
 
 
 def test_near_pairs_come_in_order_of_list_and_slot(rng):

@@ -418,9 +418,10 @@ def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int
     names = LISTED_FIELDS[kind]
     n_blocks = lists.shape[-1] // block
     blocks = np.moveaxis(lists.reshape(-1, n_blocks, block), 1, 0).reshape(-1, block)
-    if not getattr(world, names[0]).shape[0]:
+    n_slots = getattr(world, names[0]).shape[0]
+    if not n_slots:
         return {f"{kind}_rows": np.zeros(len(blocks), np.int32), f"{kind}s": ()}
-    first, rows = _distinct_rows(blocks)
+    first, rows = _distinct_blocks(blocks, n_slots)
     distinct = blocks[first]
     numbers = []
     for name in names:
@@ -430,6 +431,23 @@ def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int
         values = np.concatenate([values, padding[None]])
         numbers.append(values[distinct])  # (n_rows, block, *data)
     return {f"{kind}_rows": rows.reshape(-1).astype(np.int32), f"{kind}s": tuple(numbers)}
+
+
+def _distinct_blocks(blocks: np.ndarray, n_slots: int) -> tuple[np.ndarray, np.ndarray]:
+    """``_distinct_rows`` of blocks of lists padded with ``n_slots``, numbered alike, where
+    most blocks hold padding alone (a list's slots come first, so such a block is one whose
+    first slot is padding): those are one row, found without hashing them."""
+    empty = blocks[:, 0] == n_slots
+    if not empty.any():
+        return _distinct_rows(blocks)
+    full = np.flatnonzero(~empty)
+    first, rows = _distinct_rows(blocks[full])
+    first = full[first]
+    first_empty = int(np.argmax(empty))
+    number = int(np.searchsorted(first, first_empty))  # the empty block's number
+    numbered = np.full(len(blocks), number, np.int64)
+    numbered[full] = rows + (rows >= number)
+    return np.insert(first, number, first_empty), numbered
 
 
 def _distinct_rows(blocks: np.ndarray, weights=None) -> tuple[np.ndarray, np.ndarray]:
@@ -570,15 +588,16 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
             continue
         gathers = kind in GATHERED and n_links >= 2 * CHUNK
 
-        def read_block(block, cells, own, names=names, numbers=numbers, rows=rows,
-                       kind_code=kind_code):
-            """``value`` of block ``block`` of lists ``cells`` (an int, or links') at ``own``."""
-            row = jnp.asarray(rows).at[block * n_lists + cells].get(mode="promise_in_bounds")
-            found = value(block_world(numbers, names, row), own)
-            return _found_where(found, kind_code, row) if combine == "nearest" else found
-
+        read_block = functools.partial(_read_block, value, combine, n_lists, kind_code,
+                                       names, numbers, rows)
+        # Jitted, its trace is cached: ``jax.eval_shape``'s below is the one the scan's step
+        # reuses, so ``value`` is traced once, not twice (XLA inlines the call).
+        @jax.jit
         def one_block(block, at=None, read_block=read_block):
-            """``value`` of block ``block`` at links ``at`` (None: every link)."""
+            """``value`` of block ``block`` at links ``at`` (None: every link; with every
+            slot listed, every list's block is list 0's, read once for every link)."""
+            if at is None and lists_every_slot(tables):
+                return read_block(block, 0, per_link)
             cells_at, own = (cells, per_link) if at is None else jax.tree.map(
                 lambda a: a.at[at].get(mode="promise_in_bounds"), (cells, per_link))
             return read_block(block, cells_at, own)
@@ -587,9 +606,8 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
             result = _identity(combine, jax.eval_shape(one_block, jnp.int32(0)))
         blocks_needed = jnp.asarray(blocks).at[cells].get(mode="promise_in_bounds")
 
-        def every_slot_step(result, block, read_block=read_block):
-            # every list's block is the same: list 0's, read once, broadcast to every link
-            return elementwise(result, read_block(block, 0, per_link)), None
+        def every_slot_step(result, block, one_block=one_block):
+            return elementwise(result, one_block(block)), None
 
         def block_step(result, block, one_block=one_block, blocks_needed=blocks_needed,
                        gathers=gathers):
@@ -626,6 +644,16 @@ def over_blocks(tables: NearTables, cells, value: Callable, combine: str, per_li
         step = every_slot_step if lists_every_slot(tables) else block_step
         result, _ = jax.lax.scan(step, result, jnp.arange(n_blocks, dtype=jnp.int32))
     return jax.tree.map(lambda a: a.reshape(shape), result)
+
+
+def _read_block(value: Callable, combine: str, n_lists: int, kind_code: int, names: tuple,
+                numbers: tuple, rows, block, cells, own):
+    """``over_blocks``' ``value`` of block ``block`` of lists ``cells`` (an int, or the links')
+    at ``own``, read from one kind's ``rows`` and ``numbers`` (``NearTables``; ``names``
+    their fields)."""
+    row = jnp.asarray(rows).at[block * n_lists + cells].get(mode="promise_in_bounds")
+    found = value(block_world(numbers, names, row), own)
+    return _found_where(found, kind_code, row) if combine == "nearest" else found
 
 
 def _gathered_first(flags, chunk: int):
