@@ -60,7 +60,8 @@ class Stage(NamedTuple):
     escaped: int  # restarts whose best path is collision-free under the problem's check
     certified: bool  # one of them proved free for every r
     best_fitness: float  # the best certified path's fitness so far (0: none yet)
-    best_violation: float  # the least violation of this stage's restarts (cm)
+    best_violation: float  # the least violation of this stage's restarts (cm, plus rad
+    #   outside a joint's limits)
     seconds: float  # since the call began, at the stage's end
     time_left: float  # s (inf without a limit)
     time_ran_out: bool  # the next stage was not expected to end within the time left
@@ -68,8 +69,9 @@ class Stage(NamedTuple):
     def line(self) -> str:
         """One line for a log or a terminal."""
         found = (f"best certified fitness {self.best_fitness:.5g}" if self.best_fitness > 0
-                 else f"nothing certified yet (least violation {self.best_violation:.3g} cm)")
-        left = "" if math.isinf(self.time_left) else f", {self.time_left:.0f} s left"
+                 else f"nothing certified yet (least violation {self.best_violation:.3g})")
+        left = ("" if math.isinf(self.time_left) else f", {self.time_left:.0f} s left"
+                if self.time_left >= 0 else f", {-self.time_left:.0f} s past the time limit")
         return (f"stage {self.index}: degree {self.degree}, {self.n_restarts} restart(s)"
                 f"{' seeded' if self.seeded else ''}"
                 f", {self.escaped} escaped; {found}; {self.seconds:.1f} s{left}")

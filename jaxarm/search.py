@@ -71,8 +71,9 @@ def _nothing_escaped(result: Result, flags: bool, obstacle_names: dict | None) -
         f"(degrees {', '.join(map(str, degrees))})")
     return (f"HINT     none of {ran} found a collision-free path: "
             f"try {', '.join(tries[:-1]) + ' or ' + tries[-1] if len(tries) > 1 else tries[0]}; "
-            f"the best path found collides by "
-            f"{float(result.restarts.best_violation[result.best_restart]):.3g} cm"
+            f"the best path found is not free, violation "
+            f"{float(result.restarts.best_violation[result.best_restart]):.3g} (cm deep at its "
+            f"deepest sample, plus rad outside a joint's limits)"
             + _where_it_collides(result.witness, obstacle_names))
 
 
@@ -84,7 +85,7 @@ def _where_it_collides(witness, obstacle_names: dict | None) -> str:
     name = (obstacle_names or {}).get(name, name)
     how = (f"{-distance:.3g} cm inside {name}" if distance < 0
            else f"{distance:.3g} cm from {name}, inside the margin")
-    return f": link {link + 1} is {how} at r = {r:.4g}"
+    return f"; link {link + 1} is {how} at r = {r:.4g} (the certified check's witness)"
 
 
 def _stages_line(result: Result) -> list[str]:

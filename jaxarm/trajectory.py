@@ -74,6 +74,9 @@ class Trajectory:
     def __init__(self, problem: Problem, x, duration: float):
         self.problem = check_problem(problem)
         self.x = representable("x", finite_vector("x", x, problem.n_free))
+        if duration == 0:  # what min_duration gives a path that does not move
+            raise ValueError("duration must be > 0, got 0.0 (min_duration's answer for a path "
+                             "that does not move: any duration meets its limits)")
         self.duration = positive_scalar("duration", duration)
         if self.duration < MIN_DURATION:
             raise ValueError(f"duration must be at least {MIN_DURATION:g} s, got {duration!r}")

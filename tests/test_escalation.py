@@ -200,3 +200,16 @@ def test_the_s_bend_has_no_free_path_at_degree_6_and_one_at_degree_7():
     x = np.array([bench.S_BEND_PATH])
     assert jaxarm.certify(seven, x).free[0]
     assert dense_clearance(seven, x, 20001).min() > problem.margin
+
+
+def test_a_stage_past_its_time_limit_says_so_not_a_negative_time_left():
+    """A stage that ends after the limit (the limit is checked between stages) says how far
+    past it, and its least violation has no unit (cm plus rad outside a joint's limits)."""
+    from jaxarm.escalation import Stage
+
+    stage = Stage(index=2, degree=8, n_restarts=16, seeded=True, escaped=0, certified=False,
+                  best_fitness=0.0, best_violation=1.68, seconds=84.1, time_left=-39.2,
+                  time_ran_out=True)
+    assert stage.line().endswith("(least violation 1.68); 84.1 s, 39 s past the time limit")
+    assert stage._replace(time_left=5.4).line().endswith("84.1 s, 5 s left")
+    assert ", " not in stage._replace(time_left=float("inf")).line().split("; ")[-1]

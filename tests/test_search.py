@@ -48,7 +48,7 @@ def test_result_fields_are_consistent(case2):
                                   best_fitness=np.zeros_like(restarts.best_fitness))
     hint = result._replace(restarts=colliding).summary()
     assert "none of 5 restart(s) of A under death rules (degree 6)" in hint
-    assert "collides by 0.25 cm" in hint
+    assert "not free, violation 0.25 (cm deep at its deepest sample" in hint
 
 
 def test_the_default_search_is_the_documented_portfolio_and_says_so(case2):
@@ -266,6 +266,18 @@ def _failed(degree: int, constraint: str) -> jaxarm.Result:
                          "certified", degree, 0, 1.0)
 
 
+def test_a_hint_names_the_violation_apart_from_the_witness_depth():
+    """The hint's number is the violation (the deepest sample's depth, plus any joint's
+    excess over its limits, in rad), not how deep the path collides between samples: the
+    certified check's witness says that, as the witness, in the scenario's names."""
+    failed = _failed(6, "death")._replace(witness=(0.25, 1, 0, -0.866, "boxes[0]"))
+    hint = failed.summary(obstacle_names={"boxes[0]": "table"})
+    assert ("not free, violation 2.5 (cm deep at its deepest sample, plus rad outside a "
+            "joint's limits); link 2 is 0.866 cm inside table at r = 0.25 (the certified "
+            "check's witness)") in hint
+    assert "collides by" not in _failed(6, "death").summary()
+
+
 def test_a_hint_suggests_a_higher_degree_in_the_words_of_the_interface():
     from jaxarm.choices import MAX_DEGREE
 
@@ -275,7 +287,7 @@ def test_a_hint_suggests_a_higher_degree_in_the_words_of_the_interface():
     assert "--degree 12" in command_line and "--restarts N" in command_line
     assert "--method A:feasibility" in command_line  # works whichever way the rule was named
     assert "problem.replace" not in command_line and "n_restarts" not in command_line
-    assert "collides by 2.5 cm" in python
+    assert "not free, violation 2.5 (cm deep" in python
     # feasibility rules already used: not suggested; at the highest degree: no degree
     at_most = _failed(MAX_DEGREE, "feasibility").summary(True)
     assert "try more restarts (--restarts N); the best path" in at_most

@@ -112,6 +112,9 @@ def test_a_path_that_does_not_move_has_no_duration():
                              start=[0.1, 0.2, 0.3], goal=[0.1, 0.2, 0.3])
     assert jaxarm.min_duration(problem, [0.0, 0.0, 0.0], max_velocity=1.0,
                                max_torque=1.0) == 0.0
+    with pytest.raises(ValueError, match=r"got 0.0 \(min_duration's answer for a path that "
+                                         r"does not move: any duration meets its limits\)"):
+        jaxarm.Trajectory(problem, [0.0, 0.0, 0.0], 0.0)
 
 
 def test_export_to_csv_and_json(problem, tmp_path):
