@@ -73,6 +73,18 @@ def _at_least(minimum: int):
 _positive = _at_least(1)
 
 
+def _seed(text: str) -> int:
+    from jaxarm._validate import check_seed
+
+    try:
+        return check_seed(int(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer in [0, 2**31), got {text}")
+
+
+_seed.__name__ = "seed"
+
+
 def _positive_seconds(text: str) -> float:
     value = float(text)
     if not value > 0:  # NaN too
@@ -123,7 +135,7 @@ def _add_search_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--particles", type=_at_least(2), default=20,
                         help="swarm size, >= 2 (20)")
     parser.add_argument("--iters", type=_positive, default=100, help="PSO iterations (100)")
-    parser.add_argument("--seed", type=int, default=0, help="base seed (0)")
+    parser.add_argument("--seed", type=_seed, default=0, help="base seed (0)")
     parser.add_argument("--collision", choices=COLLISION_MODES,
                         help="collision check (default: the scenario's, else certified; "
                              "sampled is the paper's check at the samples only)")
@@ -254,7 +266,7 @@ def _add_clutter_command(commands) -> None:
                          help="their shape (circles)")
     clutter.add_argument("--size", type=float, nargs=2, default=(1.0, 3.0),
                          metavar=("MIN", "MAX"), help="circumradius range in cm (1 3)")
-    clutter.add_argument("--seed", type=int, default=0, help="the random stream (0)")
+    clutter.add_argument("--seed", type=_seed, default=0, help="the random stream (0)")
     clutter.add_argument("--clear-path", action="store_true",
                          help="keep the path with no free coefficients clear too, so that the "
                               "scene has a collision-free motion")

@@ -1,6 +1,7 @@
 """Arm kinematics (``jaxarm.model.arm``)."""
 
 import math
+import re
 
 import jax
 import jax.numpy as jnp
@@ -58,6 +59,14 @@ def test_inverse_kinematics_errors():
         jaxarm.inverse_kinematics(ARM, 50, 0, 0, elbow=0)
     with pytest.raises(ValueError, match=r"pose \(x=1e\+300, y=0, phi=0\) is unreachable"):
         jaxarm.inverse_kinematics(ARM, 1e300, 0, 0)  # no OverflowError squaring it
+    for wrong in ("a", True, None, [1.0, 2.0]):  # named, not float()'s own words
+        message = f"pose.phi must be a number, got {wrong!r}"
+        with pytest.raises(ValueError, match=re.escape(message)):
+            jaxarm.inverse_kinematics(ARM, 50, 0, wrong)
+    with pytest.raises(ValueError, match=r"pose.y must be finite, got nan"):
+        jaxarm.inverse_kinematics(ARM, 50, float("nan"), 0)
+    theta = jaxarm.inverse_kinematics(ARM, np.float32(50), np.array(10.0), 0)  # any real scalar
+    np.testing.assert_allclose(theta, jaxarm.inverse_kinematics(ARM, 50, 10, 0))
 
 
 @pytest.mark.parametrize("n_links", [4, 5, 10])

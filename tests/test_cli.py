@@ -158,7 +158,6 @@ def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
         (["solve", "paper-case-2", "--method", "A:feasibility", "--constraint", "death"],
          "method 'A:feasibility' names constraint 'feasibility' but constraint='death'"),
         (["solve", "paper-case-2", "--method", "A:nope"], "constraint must be one of"),
-        (["solve", "paper-case-2", "--seed", "-3"], "seed must be an integer"),
         (["study", "paper-case-2", "--methods", "A,A"], "unique labels, got 'A' twice"),
         (["solve", "paper-case-2", "--samples", "50"], "--samples: n_samples must be odd"),
         (["solve", "paper-case-2", "--init-low", "200"],
@@ -319,6 +318,10 @@ def test_the_cli_offers_the_librarys_choices_without_importing_jax():
         (["reproduce-paper", "--degrees", "6,8,6"],
          "argument --degrees: degrees must not repeat a degree, got '6,8,6'"),
         (["nope"], "argument COMMAND: invalid choice: 'nope'"),
+        (["solve", "paper-case-2", "--seed", "-3"],
+         "argument --seed: must be an integer in [0, 2**31), got -3"),
+        (["clutter", "paper-case-2", "--count", "3", "--seed", "2147483648", "-o", "c.toml"],
+         "argument --seed: must be an integer in [0, 2**31), got 2147483648"),
     ],
 )
 def test_cli_usage_errors_are_one_line_too(capsys, argv, message):

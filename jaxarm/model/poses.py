@@ -61,7 +61,13 @@ def inverse_kinematics(arm: Arm, x: float, y: float, phi: float = 0.0, elbow: in
         raise ValueError(f"a pose (x, y, phi) needs an arm of 3 or more links, got arm.lengths "
                          f"with {arm.n_joints}; give the joints")
     for name, value in (("x", x), ("y", y), ("phi", phi)):
-        if not math.isfinite(float(value)):
+        try:
+            if isinstance(value, (bool, str, bytes)):
+                raise TypeError
+            value = float(value)
+        except (TypeError, ValueError):
+            raise ValueError(f"pose.{name} must be a number, got {value!r}") from None
+        if not math.isfinite(value):
             raise ValueError(f"pose.{name} must be finite, got {value!r}")
     if elbow not in (1, -1):
         raise ValueError(f"pose.elbow must be +1 or -1, got {elbow!r}")
