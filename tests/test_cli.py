@@ -155,6 +155,8 @@ def test_cli_study_writes_json_csv_and_plot(capsys, tmp_path):
         (["study", "paper-case-2", "--methods", "A,A[foo=1]"], "must be FIELD=VALUE"),
         (["solve", "paper-case-2", "--method", "A-ring[inertia_end=x]"],
          "inertia_end must be a number, got 'x'"),
+        (["solve", "paper-case-2", "--method", "A[inertia_end=nan]"],
+         "--method 'A[inertia_end=nan]': inertia_end must be a finite number >= 0, got nan"),
         (["solve", "paper-case-2", "--method", "A:feasibility", "--constraint", "death"],
          "method 'A:feasibility' names constraint 'feasibility' but constraint='death'"),
         (["solve", "paper-case-2", "--method", "A:nope"], "constraint must be one of"),

@@ -158,9 +158,14 @@ def _config(name, method) -> PSOConfig | StrategyConfig | CustomConfig:
     preset, _, topology = preset_name.partition("-")
     config = pso.PRESETS[preset]._replace(
         topology=TOPOLOGY_SUFFIXES.get("-" + topology, "global"))
-    if bracket:
-        config = config._replace(**_fields_in_brackets(method, fields[:-1]))
-    return config.validate()
+    if not bracket:
+        return config.validate()
+    try:  # a value changed in brackets is the method's: named with it
+        return config._replace(**_fields_in_brackets(method, fields[:-1])).validate()
+    except ValueError as error:
+        if str(error).startswith("method "):
+            raise
+        raise ValueError(f"method {method!r}: {error}") from None
 
 
 def _fields_in_brackets(method: str, text: str) -> dict:
