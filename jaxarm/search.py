@@ -85,7 +85,7 @@ def _where_it_collides(witness, obstacle_names: dict | None) -> str:
     name = (obstacle_names or {}).get(name, name)
     how = (f"{-distance:.3g} cm inside {name}" if distance < 0
            else f"{distance:.3g} cm from {name}, inside the margin")
-    return f"; link {link + 1} is {how} at r = {r:.4g} (the certified check's witness)"
+    return f"; its deepest contact: link {link + 1} is {how} at r = {r:.4g}"
 
 
 def _stages_line(result: Result) -> list[str]:

@@ -74,7 +74,8 @@ class Trajectory:
     def __init__(self, problem: Problem, x, duration: float):
         self.problem = check_problem(problem)
         self.x = representable("x", finite_vector("x", x, problem.n_free))
-        if duration == 0:  # what min_duration gives a path that does not move
+        if np.ndim(duration) == 0 and not isinstance(duration, (bool, str)) and duration == 0:
+            # what min_duration gives a path that does not move
             raise ValueError("duration must be > 0, got 0.0 (min_duration's answer for a path "
                              "that does not move: any duration meets its limits)")
         self.duration = positive_scalar("duration", duration)

@@ -268,13 +268,13 @@ def _failed(degree: int, constraint: str) -> jaxarm.Result:
 
 def test_a_hint_names_the_violation_apart_from_the_witness_depth():
     """The hint's number is the violation (the deepest sample's depth, plus any joint's
-    excess over its limits, in rad), not how deep the path collides between samples: the
-    certified check's witness says that, as the witness, in the scenario's names."""
+    excess over its limits, in rad), not how deep the path collides between samples: its
+    deepest contact (``Result.witness``) says that, in the scenario's names."""
     failed = _failed(6, "death")._replace(witness=(0.25, 1, 0, -0.866, "boxes[0]"))
     hint = failed.summary(obstacle_names={"boxes[0]": "table"})
     assert ("not free, violation 2.5 (cm deep at its deepest sample, plus rad outside a "
-            "joint's limits); link 2 is 0.866 cm inside table at r = 0.25 (the certified "
-            "check's witness)") in hint
+            "joint's limits); its deepest contact: link 2 is 0.866 cm inside table at "
+            "r = 0.25") in hint
     assert "collides by" not in _failed(6, "death").summary()
 
 
