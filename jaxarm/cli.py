@@ -458,8 +458,8 @@ def _timing_limits(args, problem) -> dict:
             raise ValueError(f"--max-{name}: {error}") from None
     if "max_torque" in limits:
         if problem.arm.masses is None:
-            raise ValueError(f"--max-torque: {problem.name} has no link masses ([arm] masses in "
-                             "the scenario file)")
+            raise ValueError(f"--max-torque: the arm of scenario {problem.name!r} has no link "
+                             "masses ([arm] masses in the scenario file)")
         from jaxarm.trajectory import check_static_load
 
         try:
