@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm._compile.jit import jit
-from jaxarm._validate import finite_vector
+from jaxarm._validate import finite_scalar, finite_vector
 from jaxarm.model.arm import Arm
 
 REST_BEND = 0.5  # rad: the default reference posture's bend at every joint past the first
@@ -61,14 +61,9 @@ def inverse_kinematics(arm: Arm, x: float, y: float, phi: float = 0.0, elbow: in
         raise ValueError(f"a pose (x, y, phi) needs an arm of 3 or more links, got arm.lengths "
                          f"with {arm.n_joints}; give the joints")
     for name, value in (("x", x), ("y", y), ("phi", phi)):
-        try:
-            if isinstance(value, (bool, str, bytes)):
-                raise TypeError
-            value = float(value)
-        except (TypeError, ValueError):
-            raise ValueError(f"pose.{name} must be a number, got {value!r}") from None
-        if not math.isfinite(value):
-            raise ValueError(f"pose.{name} must be finite, got {value!r}")
+        if isinstance(value, (bool, str, bytes)):  # float() would take True and "1.5"
+            raise ValueError(f"pose.{name} must be a number, got {value!r}")
+        finite_scalar(f"pose.{name}", value)
     if elbow not in (1, -1):
         raise ValueError(f"pose.elbow must be +1 or -1, got {elbow!r}")
     _check_reach(arm, x, y, phi)

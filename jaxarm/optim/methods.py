@@ -160,11 +160,10 @@ def _config(name, method) -> PSOConfig | StrategyConfig | CustomConfig:
         topology=TOPOLOGY_SUFFIXES.get("-" + topology, "global"))
     if not bracket:
         return config.validate()
+    config = config._replace(**_fields_in_brackets(method, fields[:-1]))
     try:  # a value changed in brackets is the method's: named with it
-        return config._replace(**_fields_in_brackets(method, fields[:-1])).validate()
+        return config.validate()
     except ValueError as error:
-        if str(error).startswith("method "):
-            raise
         raise ValueError(f"method {method!r}: {error}") from None
 
 
