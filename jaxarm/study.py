@@ -306,7 +306,7 @@ def escape_study(problem: Problem, methods: Sequence = ("A", "B", "C"), *, n_res
         problem, variants, n_particles=n_particles, n_iters=n_iters, seed=seed))
     saved = [store.saved(index, n_restarts) if store else SavedRestarts(None, 0, 0.0, 0.0)
              for index in range(len(variants))]
-    bar = _StudyProgress(problem.name, len(variants) * n_restarts,
+    bar = _StudyProgress(problem.name, len(variants) * n_restarts, n_methods=len(variants),
                          done=sum(s.count for s in saved),
                          shown=sys.stderr.isatty() if progress is None else progress)
     run = dict(n_particles=n_particles, n_iters=n_iters, seed=seed,
@@ -349,10 +349,12 @@ def _method_study(problem: Problem, variant: Variant, n_restarts: int, saved: Sa
 
 class _StudyProgress:
     """A study's progress: a bar with the time left on a terminal, else a line per finished
-    chunk on the ``jaxarm.study`` logger (when the study has more than one chunk)."""
+    chunk on the ``jaxarm.study`` logger (when the study has more than one chunk). ``total``
+    and ``done`` count every method's seeds."""
 
-    def __init__(self, name: str, total: int, *, done: int, shown: bool):
+    def __init__(self, name: str, total: int, *, n_methods: int, done: int, shown: bool):
         self.name, self.total, self.done, self.shown = name, total, done, shown
+        self.n_methods = n_methods
         self.bar = _progress_bar(total, name, shown, initial=done)
         self.label = ""
         if done:
@@ -374,8 +376,10 @@ class _StudyProgress:
         if self.shown or count == self.total:  # shown by the bar, or a one-chunk study
             return
         left = (self.total - self.done) * seconds / restarts_run
-        LOGGER.info("%s %s: %s of %s seeds, %s", self.name, self.label, f"{self.done:,}",
-                    f"{self.total:,}", f"about {_duration(left)} left" if left else "done")
+        methods = f" of {self.n_methods} methods (now {self.label})" if self.n_methods > 1 else ""
+        LOGGER.info("%s%s: %s of %s seeds%s, %s", self.name,
+                    "" if methods else f" {self.label}", f"{self.done:,}", f"{self.total:,}",
+                    methods, f"about {_duration(left)} left" if left else "done")
 
     def close(self) -> None:
         self.bar.close()

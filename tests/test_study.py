@@ -1,6 +1,7 @@
 """Escape studies (``jaxarm.study``): Wilson intervals, reproducibility, records, sweeps."""
 
 import json
+import logging
 
 import jax
 import numpy as np
@@ -113,6 +114,23 @@ def test_progress_moves_per_chunk_and_says_when_it_compiles(case2, monkeypatch):
     bar.events.clear()
     study.escape_study(case2, ["A"], n_restarts=9, chunk_size=9, progress=True, **sizes)
     assert bar.events[1:3] == [("postfix", "compiling"), ("update", 9)]  # 9 -> 16 run: new
+
+
+def test_progress_lines_count_every_methods_seeds_and_name_the_running_one(case2, caplog):
+    sizes = dict(n_particles=5, n_iters=7)  # the program of the test above
+    with caplog.at_level(logging.INFO, logger="jaxarm.study"):
+        study.escape_study(case2, ["A", "C"], n_restarts=9, chunk_size=5, progress=False,
+                           **sizes)
+    said = [record.getMessage() for record in caplog.records]
+    assert [m.split(",")[0] for m in said] == [
+        f"paper-case-2: {done} of 18 seeds of 2 methods (now {label})"
+        for done, label in ((5, "A"), (9, "A"), (14, "C"), (18, "C"))]
+    assert said[-1].endswith(", done") and said[0].endswith(" left")
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="jaxarm.study"):
+        study.escape_study(case2, ["A"], n_restarts=9, chunk_size=5, progress=False, **sizes)
+    assert [record.getMessage().split(",")[0] for record in caplog.records] == [
+        "paper-case-2 A: 5 of 9 seeds", "paper-case-2 A: 9 of 9 seeds"]
 
 
 def test_study_summaries_tables_and_records(case2):

@@ -110,3 +110,32 @@ def test_plot_clearance_draws_each_links_distance_and_the_deepest_contact(case2)
     assert "margin 0.5 cm" in labels and "witness: link 2" in labels
     distances = ax.get_lines()[1].get_ydata()
     assert distances.shape == (101,) and distances.min() < 0  # link 2 goes inside
+
+
+def test_distances_along_a_path_are_shapelys_and_compile_once_for_a_summary_and_a_figure(
+        rng, caplog):
+    """``clearance_along`` (what a summary's deepest contact and the figures measure) against
+    shapely at 201 and 401 instants: both counts run one compiled program, and its compiling
+    is announced (a world of a shape no other test uses)."""
+    import logging
+
+    from jaxarm.checks.witness import clearance_along
+
+    problem = jaxarm.clutter(jaxarm.load_scenario("five-link-detour"), 13, "triangles", seed=3)
+    x = rng.uniform(*problem.bounds(), (problem.n_free,)).astype(np.float32)
+    said = []
+    for n_points in (201, 401):
+        r = np.linspace(0.0, 1.0, n_points)
+        with caplog.at_level(logging.INFO, logger="jaxarm.compile"):
+            distance, obstacle, other = clearance_along(problem, x, r)
+        said.append([record.getMessage() for record in caplog.records])
+        caplog.clear()
+        oracle = oracle_distances(problem, np.repeat(x[None], n_points, 0), r)
+        assert distance.shape == obstacle.shape == (n_points, problem.n_joints)
+        np.testing.assert_allclose(np.maximum(distance, 0.0), oracle.min(axis=-1),
+                                   atol=TOLERANCE)
+        picked = np.take_along_axis(oracle, obstacle[..., None], axis=-1)[..., 0]
+        np.testing.assert_allclose(picked, oracle.min(axis=-1), atol=TOLERANCE)
+        assert np.all(other == -1)  # this arm does not check self-collision
+    assert any(m.startswith("compiling the distances along the path") for m in said[0]), said
+    assert not said[1], said

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm._compile.jit import jit
-from jaxarm._compile.padding import on_padded_rows
+from jaxarm._compile.padding import on_padded_rows, padded_size
 from jaxarm.checks import collision as collision_lib
 from jaxarm.model import path, self_collision
 from jaxarm.model import world as world_lib
@@ -29,6 +29,9 @@ from jaxarm.model.problem import Problem, ProblemArrays, ProblemSpec, as_params
 # Postures whose link-obstacle distances are computed at once: memory stays bounded by this
 # times the links times the obstacle slots, whatever the batch.
 POSTURES_AT_ONCE = 64
+# The fewest postures ``clearance_along`` computes in a call (the rest padding): a summary's
+# 401 instants and a figure's 201 or 401 run one compiled program.
+POSTURES_PADDED = 512
 
 
 class Witness(NamedTuple):
@@ -65,19 +68,21 @@ def link_distances(lengths, world, theta):
     n_joints = theta.shape[-1]
     circles = jnp.asarray(world.circles, theta.dtype)
 
-    def obstacles(links):  # the obstacles as an array axis: compiled once whatever their number
+    def obstacles(stacked):  # (n_joints, n_slots): the links and the obstacles as array axes,
+        # compiled once whatever their numbers
         if valid.shape[0] == 0:
             return jnp.full((n_joints, 1), jnp.inf, theta.dtype)
-        separation = jnp.stack([jnp.concatenate([
-            world_lib.point_segment_distance(circles[:, 0], circles[:, 1], *link)
-            - circles[:, 2], world_lib.polygon_separation_xy(*link, world, vertex_axis=True)])
-            for link in links])
+        sx, sy, ex, ey = stacked
+        separation = jnp.concatenate([
+            world_lib.point_segment_distance(circles[None, :, 0], circles[None, :, 1],
+                                             sx[:, None], sy[:, None], ex[:, None], ey[:, None])
+            - circles[None, :, 2],
+            world_lib.polygon_separation_xy(sx, sy, ex, ey, world, vertex_axis=True).T], axis=1)
         return jnp.where(valid[None], separation, jnp.inf)
 
     def one(angles):
-        angles = list(angles)
-        links = link_endpoints(lengths, angles)
-        separation = obstacles(links)
+        links = link_endpoints(lengths, list(angles))
+        separation = obstacles(tuple(jnp.stack(coordinate) for coordinate in zip(*links)))
         nearest = separation.min(axis=1)  # inf: only padding slots
         slot = jnp.where(jnp.isinf(nearest), -1, jnp.argmin(separation, axis=1))
         between = _link_separations(links, world)  # (n_joints, n_joints)
@@ -98,11 +103,11 @@ def _link_separations(links: list, world):
     if world.link_walls is None:
         return between
     first, other = np.array(self_collision.pairs(n_joints)).T
-    separations = jnp.stack(self_collision.pair_separations(links))
+    separations = self_collision.stacked_pair_separations(links)
     return between.at[first, other].set(separations).at[other, first].set(separations)
 
 
-_link_distances = jit(link_distances)
+_link_distances = jit(link_distances, label="the distances along the path")
 
 
 def clearance_along(problem: Problem, x, r):
@@ -118,10 +123,15 @@ def clearance_along(problem: Problem, x, r):
       ``(distance, obstacle, other_link)``, NumPy arrays of shape (n_r, n_joints) (-1:
       none).
     """
-    theta = joint_path(problem, x, r)
+    theta = np.asarray(joint_path(problem, x, r))
     arrays = problem.device_arrays()
-    distance, slot, other = _link_distances(arrays.lengths, arrays.world, theta)
-    return np.asarray(distance), obstacle_index(problem, np.asarray(slot)), np.asarray(other)
+    # Postures padded to a few counts, at least ``POSTURES_PADDED``: a summary's instants and a
+    # figure's share one compiled program.
+    extra = padded_size(len(theta), POSTURES_PADDED) - len(theta)
+    padded = np.concatenate([theta, np.repeat(theta[:1], extra, axis=0)])
+    found = _link_distances(arrays.lengths, arrays.world, padded)
+    distance, slot, other = (np.asarray(a)[:len(theta)] for a in found)
+    return distance, obstacle_index(problem, slot), other
 
 
 @functools.partial(jit, static_argnums=0, storable=True)

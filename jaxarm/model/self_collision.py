@@ -119,12 +119,19 @@ def pair_separations(links: list, xp=jnp) -> list:
     checked = pairs(len(links))
     if xp is np or len(checked) <= UNROLLED_PAIRS:
         return [segment_separations(links[i], links[j], xp) for i, j in checked]
-    first, other = np.array(checked).T
+    return list(stacked_pair_separations(links))
+
+
+def stacked_pair_separations(links: list):
+    """``pair_separations`` as one array of shape (n_pairs, ...), computed with the pairs on
+    its leading axis: one loop however many pairs, which compiles far faster than the pairs
+    written out (for code where compiling outweighs running: a witness, a figure)."""
+    first, other = np.array(pairs(len(links))).T
     coordinates = [jnp.stack(jnp.broadcast_arrays(*coordinate))  # (n_links, ...)
                    for coordinate in zip(*links)]
     # The barrier keeps the pairs' loop apart from what reads the separations.
-    return list(jax.lax.optimization_barrier(segment_separations(
-        tuple(c[first] for c in coordinates), tuple(c[other] for c in coordinates))))
+    return jax.lax.optimization_barrier(segment_separations(
+        tuple(c[first] for c in coordinates), tuple(c[other] for c in coordinates)))
 
 
 def segment_separations(p, q, xp=jnp):
