@@ -81,11 +81,16 @@ def _where_it_collides(witness, obstacle_names: dict | None) -> str:
     """``Result.witness`` in words (empty without one)."""
     if witness is None:
         return ""
+    return f"; its deepest contact: {_contact_words(witness, obstacle_names)}"
+
+
+def _contact_words(witness: tuple, obstacle_names: dict | None) -> str:
+    """A ``Result.witness`` as "link 2 is 0.3 cm inside circles[0] at r = 0.41"."""
     r, link, _, distance, name = witness
     name = (obstacle_names or {}).get(name, name)
     how = (f"{-distance:.3g} cm inside {name}" if distance < 0
            else f"{distance:.3g} cm from {name}, inside the margin")
-    return f"; its deepest contact: link {link + 1} is {how} at r = {r:.4g}"
+    return f"link {link + 1} is {how} at r = {r:.4g}"
 
 
 def _stages_line(result: Result) -> list[str]:
@@ -129,7 +134,8 @@ class Result(NamedTuple):
     time_limit: float | None = None  # s, the search's (None: none)
     witness: tuple | None = None  # where the best path collides, when it does: (r, link
     #   (0-based), obstacle (index in ``World``'s order), distance (cm), the obstacle's name
-    #   in ``World``: "boxes[2]") (``evaluate.deepest_contact``)
+    #   in ``World``: "boxes[2]") (``evaluate.deepest_contact``); for a path free only at
+    #   the sampled check's samples, where ``certify`` finds it colliding between them
 
     @property
     def best_x(self) -> np.ndarray:
@@ -173,8 +179,10 @@ class Result(NamedTuple):
             f"{f'best {coefficient_label(self.degree)}':<8} {exact_text(self.best_x)}",
             f"fitness  {self.best_fitness:.5g}  feasible {self.feasible}  "
             f"certified {self.certified}",
-            *([f"WARNING  feasible only at the {self.collision} check's samples: the motion is "
-               "not certified collision-free between them"]
+            *([f"WARNING  feasible only at the {self.collision} check's samples: "
+               + (f"between them, {_contact_words(self.witness, obstacle_names)} "
+                  "(jaxarm.certify)" if self.witness is not None else
+                  "the motion is not certified collision-free between them")]
               if self.feasible and not self.certified else []),
             f"escape   iteration {self.escape_iter} (best restart); "
             f"{escaped}/{self.n_restarts} restarts escaped",
@@ -344,9 +352,11 @@ def solve(problem: Problem, method=None, *, n_particles: int | None = None,
         outcome = _refined(problem, outcome, every=refine == "all")
     best = _best(problem, outcome, found.certified, refine)
     feasible = bool(outcome.feasible[best])
-    certified = feasible and (problem.collision == "certified"
-                              or bool(certify(problem, outcome.best_x[best]).free))
-    witness = None if feasible else _witness(problem, outcome.best_x[best])
+    certificate = (None if not feasible or problem.collision == "certified"
+                   else certify(problem, outcome.best_x[best]))
+    certified = feasible and (certificate is None or bool(certificate.free))
+    witness = (_witness(problem, outcome.best_x[best]) if not feasible
+               else _certified_witness(problem, certificate))
     method_name = (variants[0].name if len(variants) == 1 else
                    " + ".join(f"{variant.name} x {count}"
                               for variant, count in zip(variants, found.n_restarts)))
@@ -413,6 +423,20 @@ def _witness(problem: Problem, x) -> tuple | None:
     name = (problem.world.obstacle_name(int(found.obstacle)) if found.obstacle >= 0
             else f"link {int(found.other_link) + 1}")
     return float(found.r), int(found.link), int(found.obstacle), float(found.distance), name
+
+
+def _certified_witness(problem: Problem, certificate) -> tuple | None:
+    """``Result.witness`` of a path the sampled check calls free, where ``certify``'s
+    ``certificate`` finds it colliding between the samples; None otherwise (no certificate,
+    proved free, or undecided)."""
+    if certificate is None or not bool(certificate.colliding):
+        return None
+    obstacle, other = int(certificate.witness_obstacle), int(certificate.witness_other_link)
+    if obstacle < 0 and other < 0:  # a joint limit alone
+        return None
+    name = problem.world.obstacle_name(obstacle) if obstacle >= 0 else f"link {other + 1}"
+    return (float(certificate.witness_r), int(certificate.witness_link), obstacle,
+            float(certificate.clearance), name)
 
 
 def _refined(problem, outcome: RestartOutcome, every: bool) -> RestartOutcome:

@@ -51,6 +51,29 @@ def test_result_fields_are_consistent(case2):
     assert "not free, violation 0.25 (cm deep at its deepest sample" in hint
 
 
+def test_a_path_free_only_at_the_samples_names_where_certify_finds_it_colliding():
+    """Under the sampled check, a best path free at the samples that collides between them
+    gets ``certify``'s witness, which the summary prints, checked against shapely."""
+    import shapely
+
+    from jaxarm.testing import link_segments_at, shapely_obstacles
+
+    problem = jaxarm.load_scenario("paper-case-1", collision="sampled")
+    grazing = np.float32([55.03985, -58.297947, 0.61486983])  # free at the 101 samples
+    result = jaxarm.solve(problem, "A", n_restarts=1, seed=0, init_particles=grazing[None],
+                          **SMALL)
+    assert result.feasible and not result.certified
+    r, link, obstacle, distance, name = result.witness
+    assert name == problem.world.obstacle_name(obstacle) and distance < 0
+    segment = link_segments_at(problem, result.best_x[None].astype(np.float64),
+                               np.array([[r]]))[0, 0, link]
+    (centre, radius), = [shapely_obstacles(problem.world)[0][obstacle]]
+    oracle = shapely.distance(shapely.linestrings(segment.reshape(2, 2)), centre) - radius
+    assert oracle < 0 and abs(oracle - distance) < 1e-3
+    warning = next(line for line in result.summary().splitlines() if line.startswith("WARNING"))
+    assert f"between them, link {link + 1} is {-distance:.3g} cm inside {name}" in warning
+
+
 def test_the_default_search_is_the_documented_portfolio_and_says_so(case2):
     result = jaxarm.solve(case2, **SMALL)
     ring, preset = DEFAULT_METHODS
