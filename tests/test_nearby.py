@@ -3,6 +3,7 @@ slot, no false "free" against the dense shapely oracle among hundreds of obstacl
 program that does not grow with the obstacles."""
 
 import pickle
+import types
 
 import jax
 import jax.numpy as jnp
@@ -33,6 +34,16 @@ def corridor_world(rng, count: int, kind: str) -> jaxarm.World:
         return jaxarm.World(circles=placed)
     return jaxarm.World(polygons=[[(x - r, y - r), (x + r, y - r), (x, y + r)]
                                   for x, y, r in placed])
+
+
+def link_at(rng, before, length: float, direction):
+    """End points (start, end), each of shape (n, 2), of a link of ``length`` pointing along
+    ``direction`` (rad, shape (n,)), at the end of a chain of links of lengths ``before``
+    from the origin at random angles (float64)."""
+    angles = rng.uniform(0, 2 * np.pi, (len(direction), len(before)))
+    start = np.stack([np.cos(angles), np.sin(angles)], -1).transpose(0, 2, 1) @ np.asarray(
+        before, np.float64) if len(before) else np.zeros((len(direction), 2))
+    return start, start + length * np.stack([np.cos(direction), np.sin(direction)], -1)
 
 
 def corridor_problem(rng, count, kind, collision="certified", margin=0.0, world=None):
@@ -96,12 +107,12 @@ def test_a_links_direction_bin_is_that_of_its_angle(rng):
 
 @pytest.mark.parametrize("count, collision, largest_kept", [
     (nearby.BROAD_PHASE_WORK + 1, "certified", True), (1000, "certified", False),
-    (nearby.BROAD_PHASE_WORK + 1, "sampled", True), (1500, "sampled", False)])
+    (nearby.BROAD_PHASE_WORK + 1, "sampled", True), (2000, "sampled", False)])
 def test_the_tables_take_the_largest_reach_whose_lists_are_shortest(
         rng, count, collision, largest_kept):
     """Among a check's candidate reaches, the tables keep the largest whose lists are no
     longer (in whole blocks) than the smallest reach's: just past the threshold every
-    candidate lists as few blocks, and the largest is kept; among 1,000 circles (1,500 for the
+    candidate lists as few blocks, and the largest is kept; among 1,000 circles (2,000 for the
     sampled check's two candidates) the largest lists more, and a shorter one is kept. The
     chosen tables are those built for that reach alone."""
     problem = corridor_problem(rng, count, "circles", collision=collision, margin=0.5)
@@ -140,10 +151,10 @@ def test_a_circle_lists_padding_is_beyond_the_reach_of_every_link(rng):
                                              ("triangles", "certified"),
                                              ("triangles", "sampled")])
 def test_every_obstacle_within_reach_of_a_link_is_listed(rng, kind, collision):
-    """Random segments of each link's length in the arm's reach, in every direction (some on
-    the bins' edges): every obstacle closer than the tables' reach (shapely) is in the list
-    ``near_cells`` picks, and the list's rows hold that obstacle's numbers (in the polygon
-    blocks of each check's size)."""
+    """Each link at random postures of the arm, in every direction (some on the bins' edges):
+    every obstacle closer than the tables' reach (shapely) is in the list ``near_cells``
+    picks, and the list's rows hold that obstacle's numbers (in the polygon blocks of each
+    check's size)."""
     problem = corridor_problem(rng, 300, kind, collision=collision)
     world, tables = problem.arrays.world, problem.arrays.world.near
     reach = float(tables.reach)
@@ -162,11 +173,10 @@ def test_every_obstacle_within_reach_of_a_link_is_listed(rng, kind, collision):
     assert block == (nearby.BLOCK if kind == "circles" else nearby.POLYGON_BLOCK[collision])
     edges = np.arange(2 * nearby.DIRECTION_BINS) * np.pi / nearby.DIRECTION_BINS
     for link, length in enumerate(ARM.lengths):
-        mid = rng.uniform(-1, 1, (400, 2)) * (ARM.reach - length / 2) / np.sqrt(2)
         angle = np.concatenate([rng.uniform(0, 2 * np.pi, 368),
                                 edges + rng.choice([-1e-6, 1e-6], len(edges))])
-        half = 0.5 * length * np.stack([np.cos(angle), np.sin(angle)], -1)
-        start, end = (mid - half).astype(np.float32), (mid + half).astype(np.float32)
+        start, end = link_at(rng, ARM.lengths[:link], length, angle)
+        start, end = start.astype(np.float32), end.astype(np.float32)
         lines = shapely.linestrings(np.stack([start, end], 1).astype(np.float64))
         listed_in = np.asarray(nearby.near_cells(tables, link, start[:, 0], start[:, 1],
                                                  end[:, 0], end[:, 1]))
@@ -588,9 +598,34 @@ def test_near_pairs_come_in_order_of_list_and_slot(rng):
     low = rng.uniform(-80, 80, (300, 2))
     high = low + rng.uniform(0, 6, (300, 2))
     centres = -80.0 + (160.0 / nearby.GRID_CELLS) * (np.arange(nearby.GRID_CELLS) + 0.5)
-    pairs = nearby._near_pairs(centres, low, high, 30.0, 5.0)
+    everywhere = np.ones((nearby.GRID_CELLS, nearby.GRID_CELLS), bool)
+    pairs = nearby._near_pairs(centres, low, high, 30.0, 5.0, everywhere)
     key = pairs.lists.astype(np.int64) * 301 + pairs.slots
     assert len(key) > 1000 and np.all(np.diff(key) > 0)
+
+
+@pytest.mark.parametrize("lengths", [(30.0, 30.0, 20.0), (30.0, 5.0, 20.0, 4.0), (8.0,) * 10])
+def test_every_cell_a_links_midpoint_reaches_has_its_list(rng, lengths):
+    """``_reachable_cells``: the midpoint of every link, at 20,000 random postures (float32
+    kinematics, the cell ``near_cells`` picks), lies in a cell the link's tables fill; and
+    cells far from every midpoint are left empty (a ring for the first link)."""
+    arm_reach = sum(lengths)
+    cell = 2.0 * arm_reach / nearby.GRID_CELLS
+    centres = -arm_reach + cell * (np.arange(nearby.GRID_CELLS) + 0.5)
+    theta = [jnp.asarray(rng.uniform(-np.pi, np.pi, 20_000), jnp.float32) for _ in lengths]
+    links = link_endpoints(jnp.asarray(lengths, jnp.float32), theta)
+    tables = types.SimpleNamespace(
+        circle_lists=np.zeros((1, 1, nearby.GRID_CELLS, nearby.GRID_CELLS, 1)),
+        inverse_cell=1.0 / cell, origin=np.array([-arm_reach, -arm_reach]))
+    for link, (sx, sy, ex, ey) in enumerate(links):
+        reachable = nearby._reachable_cells(centres, cell, np.asarray(lengths[:link + 1]),
+                                            1e-4 * arm_reach)
+        row, column = nearby.cell_of(tables, 0.5 * (sx + ex), 0.5 * (sy + ey))
+        assert reachable[np.asarray(row), np.asarray(column)].all(), link
+        assert reachable.mean() < 0.9  # the grid's corners at least are out of reach
+    first = nearby._reachable_cells(centres, cell, np.asarray(lengths[:1]), 1e-4 * arm_reach)
+    radius = np.hypot(centres[:, None], centres[None, :])
+    assert not first[np.abs(radius - 0.5 * lengths[0]) > cell].any()
 
 
 def test_lists_are_filled_alike_from_pairs_in_any_order(rng):

@@ -2,9 +2,10 @@
 
 A world of more than ``BROAD_PHASE_WORK`` circle slots and polygon edges (``slot_work``)
 gets ``NearTables``, built once on the host: a uniform grid over the arm's reach, the link's
-direction in ``DIRECTION_BINS`` bins, and per link, bin and cell the slots of every obstacle
-whose bounding box comes within ``width`` of the segment of the link's length through the
-cell's centre along the bin's middle direction, where ``width`` = the cell's half-diagonal +
+direction in ``DIRECTION_BINS`` bins, and per link, bin and cell (of the cells the link's
+midpoint can reach at some joint angles: the others keep empty lists) the slots of every
+obstacle whose bounding box comes within ``width`` of the segment of the link's length through
+the cell's centre along the bin's middle direction, where ``width`` = the cell's half-diagonal +
 how far a turn within the bin moves the link's points + ``reach`` (cm, the tables'
 guarantee). A link whose midpoint lies in that cell and whose direction lies in that bin is
 then, from every obstacle left out of the list, at least ``reach`` away: the checks test the
@@ -191,16 +192,18 @@ def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> N
     # Every point of a link whose midpoint is in the cell and whose direction is in the bin
     # lies within this of the segment through the cell's centre along the bin's middle
     # direction (a turn by at most half_bin moves a point at t from the midpoint by
-    # 2 |t| sin(half_bin / 2)), plus the reach. Links of one length share their pairs.
-    spreads = {length: half_diagonal + length * np.sin(0.5 * half_bin) for length in lengths}
-    pairs = {(kind, length): _near_pairs(centres, low, high, length,
-                                         spread + reaches[-1] + slack)
-             for kind, (low, high) in boxes.items() for length, spread in spreads.items()}
+    # 2 |t| sin(half_bin / 2)), plus the reach. Each link lists the cells its midpoint can
+    # reach alone (the others keep empty lists).
+    spreads = [half_diagonal + length * np.sin(0.5 * half_bin) for length in lengths]
+    pairs = {(kind, link): _near_pairs(centres, low, high, lengths[link],
+                                       spreads[link] + reaches[-1] + slack,
+                                       _reachable_cells(centres, cell, lengths[:link + 1], slack))
+             for kind, (low, high) in boxes.items() for link in range(len(lengths))}
 
     def pairs_at(reach: float) -> dict:
-        kept = {(kind, length): _within(found, length, spreads[length] + reach + slack)
-                for (kind, length), found in pairs.items()}
-        return {kind: [kept[kind, length] for length in lengths] for kind in boxes}
+        kept = {(kind, link): _within(found, lengths[link], spreads[link] + reach + slack)
+                for (kind, link), found in pairs.items()}
+        return {kind: [kept[kind, link] for link in range(len(lengths))] for kind in boxes}
 
     def list_blocks(kept: dict) -> tuple:
         return tuple(_list_length(kept[kind], blocks[kind]) for kind in boxes)
@@ -292,12 +295,28 @@ class _Pairs(NamedTuple):
     centre_squared: np.ndarray
 
 
-def _near_pairs(centres, low, high, length, width) -> _Pairs:
+def _reachable_cells(centres, cell: float, lengths, slack: float) -> np.ndarray:
+    """Which grid cells (bool, shape (n_cells, n_cells), row then column) hold a point within
+    ``slack`` of where the midpoint of an arm's link can be: the last of ``lengths`` (the
+    arm's links up to it), its base at the origin, at any joint angles. That midpoint's
+    distance from the base is a sum of vectors of lengths a (the links before it, then half
+    its own) in any directions: it takes every value from max(0, 2 max(a) - sum(a)) to
+    sum(a)."""
+    arms = np.append(np.asarray(lengths[:-1], np.float64), 0.5 * lengths[-1])
+    outer, inner = arms.sum(), max(0.0, 2.0 * arms.max() - arms.sum())
+    nearest = np.maximum(np.abs(centres) - 0.5 * cell, 0.0)  # per row or column
+    farthest = np.abs(centres) + 0.5 * cell
+    near = np.hypot(nearest[:, None], nearest[None, :])
+    far = np.hypot(farthest[:, None], farthest[None, :])
+    return (near <= outer + slack) & (far >= inner - slack)
+
+
+def _near_pairs(centres, low, high, length, width, reachable) -> _Pairs:
     """The (list, slot) pairs of the slots whose box comes within ``width`` of the segment
     of ``length`` through the cell's centre along the bin's middle direction, by the largest
     gap of their projections on four axes (x, y and the segment's direction and normal: each
     a lower bound on the distance) and by the box's distance from the centre (within
-    length / 2 + width)."""
+    length / 2 + width), in the cells ``reachable`` holds alone (bool, (n_cells, n_cells))."""
     n_cells = len(centres)
     # Candidates: within length / 2 + width of the centre, whatever the direction.
     gap_x = np.maximum(np.maximum(low[None, :, 0] - centres[:, None],
@@ -305,10 +324,11 @@ def _near_pairs(centres, low, high, length, width) -> _Pairs:
     gap_y = np.maximum(np.maximum(low[None, :, 1] - centres[:, None],
                                   centres[:, None] - high[None, :, 1]), 0.0)
     radius = 0.5 * length + width
-    cells, slots, centre_squared = [], [], []
-    for row in range(n_cells):
+    cells, slots, centre_squared = ([np.zeros(0, np.int64)], [np.zeros(0, np.int64)],
+                                    [np.zeros(0, gap_x.dtype)])
+    for row in np.flatnonzero(reachable.any(axis=1)):
         squared = gap_y[row][None, :] ** 2 + gap_x ** 2
-        column, slot = np.nonzero(squared <= radius * radius)
+        column, slot = np.nonzero((squared <= radius * radius) & reachable[row][:, None])
         cells.append(row * n_cells + column)
         slots.append(slot)
         centre_squared.append(squared[column, slot])
