@@ -585,10 +585,11 @@ def test_blocks_of_padding_alone_are_numbered_as_every_block_is(rng, first_empty
         blocks[first_empty] = n_slots
     assert np.any(blocks[:, 0] == n_slots) == (first_empty is not None)
     expected = nearby._distinct_rows(blocks)
-    found = nearby._distinct_blocks(blocks, n_slots)
-    np.testing.assert_array_equal(found[0], expected[0])
-    np.testing.assert_array_equal(found[1], expected[1])
-    everything_padding = np.full((7, 2), n_slots, np.int32)
+    for shape in ((1, len(blocks)), (len(blocks) // 5, 5) if len(blocks) % 5 == 0 else (1, -1)):
+        found = nearby._distinct_blocks(blocks.reshape(*shape, 2), n_slots)  # (n_blocks, M, 2)
+        np.testing.assert_array_equal(found[0], expected[0])
+        np.testing.assert_array_equal(found[1], expected[1])
+    everything_padding = np.full((1, 7, 2), n_slots, np.int32)
     np.testing.assert_array_equal(nearby._distinct_blocks(everything_padding, n_slots)[1], 0)
 
 

@@ -408,9 +408,9 @@ def _padded(per_link: list, n_slots: int, block: int) -> np.ndarray:
 
 
 def _used_blocks(lists: np.ndarray, n_slots: int, block: int) -> np.ndarray:
-    """How many blocks of each list hold a listed slot: int32, shape (M,)."""
-    listed = (lists < n_slots).sum(axis=-1).reshape(-1)
-    return (-(-listed // block)).astype(np.int32)
+    """How many blocks of each list hold a listed slot: int32, shape (M,). A list's slots
+    come first, so those are the blocks whose first slot is listed."""
+    return (lists[..., ::block] < n_slots).sum(axis=-1, dtype=np.int32).reshape(-1)
 
 
 # The numbers of a masked empty slot, far from any arm (a polygon list's padding; a circle
@@ -437,12 +437,13 @@ def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int
     (per field: one slot's numbers, broadcast)."""
     names = LISTED_FIELDS[kind]
     n_blocks = lists.shape[-1] // block
-    blocks = np.moveaxis(lists.reshape(-1, n_blocks, block), 1, 0).reshape(-1, block)
+    blocks = np.swapaxes(lists.reshape(-1, n_blocks, block), 0, 1)  # (n_blocks, M, block), a view
     n_slots = getattr(world, names[0]).shape[0]
     if not n_slots:
-        return {f"{kind}_rows": np.zeros(len(blocks), np.int32), f"{kind}s": ()}
+        return {f"{kind}_rows": np.zeros(blocks.shape[0] * blocks.shape[1], np.int32),
+                f"{kind}s": ()}
     first, rows = _distinct_blocks(blocks, n_slots)
-    distinct = blocks[first]
+    distinct = blocks[first // blocks.shape[1], first % blocks.shape[1]]
     numbers = []
     for name in names:
         values = np.asarray(getattr(world, name))
@@ -454,18 +455,21 @@ def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int
 
 
 def _distinct_blocks(blocks: np.ndarray, n_slots: int) -> tuple[np.ndarray, np.ndarray]:
-    """``_distinct_rows`` of blocks of lists padded with ``n_slots``, numbered alike, where
-    most blocks hold padding alone (a list's slots come first, so such a block is one whose
-    first slot is padding): those are one row, found without hashing them."""
-    empty = blocks[:, 0] == n_slots
-    if not empty.any():
-        return _distinct_rows(blocks)
+    """``_distinct_rows`` of the blocks of lists padded with ``n_slots`` (shape (n_blocks, M,
+    block): block b of list c; a view will do), taken in order of block then list and
+    numbered alike, where most blocks hold padding alone (a list's slots come first, so such
+    a block is one whose first slot is padding): those are one row, found without hashing or
+    copying them."""
+    n_lists = blocks.shape[1]
+    empty = (blocks[:, :, 0] == n_slots).reshape(-1)
     full = np.flatnonzero(~empty)
-    first, rows = _distinct_rows(blocks[full])
+    first, rows = _distinct_rows(blocks[full // n_lists, full % n_lists])
     first = full[first]
+    if not empty.any():
+        return first, rows
     first_empty = int(np.argmax(empty))
     number = int(np.searchsorted(first, first_empty))  # the empty block's number
-    numbered = np.full(len(blocks), number, np.int64)
+    numbered = np.full(len(empty), number, np.int64)
     numbered[full] = rows + (rows >= number)
     return np.insert(first, number, first_empty), numbered
 
