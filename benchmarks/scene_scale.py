@@ -138,7 +138,7 @@ def main() -> None:
                       + ("| | |" if args.search else ""), flush=True)
                 continue
             line = (f"| {name} | {row['obstacles']} | {check} | {row['paths_per_s'] / 1e3:,.1f} k "
-                    f"| {row['first']:.1f} | {row['memory_gb']:.2f} |")
+                    f"| {row['first']:.2f} | {row['memory_gb']:.2f} |")
             if args.search:
                 line += (f" {row['search_first']:.1f} / {row['search_warm']:.2f} | "
                          f"{row['escapes']} / {row['restarts']} | {row['certified']} |")

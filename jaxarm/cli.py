@@ -556,11 +556,12 @@ def _solve(args) -> None:
           f"{args.iters} iterations")
     names = obstacle_names(args.scenario) if result.witness is not None else None
     print(result.summary(flags=True, obstacle_names=names))
-    problem = at_degree(problem, result.degree)  # the degree the best path has
-    if args.json:  # solve(problem, method, **settings) repeats it (method null: the default)
+    if args.json:  # solve(problem, method, **settings) repeats it (method null: the default),
+        # from the problem as searched, whatever degree the best path was found at
         record = json.dumps(run_record(problem, args.method, settings, result), indent=2,
                             allow_nan=False)
         _write(args.json, lambda path: path.write_text(record, encoding="utf-8"))
+    problem = at_degree(problem, result.degree)  # the degree the best path has
     if args.plot:
         figure = plot.plot_motion(problem, result.best_x)
         _write(args.plot, lambda path: figure.savefig(path, dpi=110))

@@ -351,12 +351,7 @@ def solve(problem: Problem, method=None, *, n_particles: int | None = None,
     if refine:
         outcome = _refined(problem, outcome, every=refine == "all")
     best = _best(problem, outcome, found.certified, refine)
-    feasible = bool(outcome.feasible[best])
-    certificate = (None if not feasible or problem.collision == "certified"
-                   else certify(problem, outcome.best_x[best]))
-    certified = feasible and (certificate is None or bool(certificate.free))
-    witness = (_witness(problem, outcome.best_x[best]) if not feasible
-               else _certified_witness(problem, certificate))
+    certified, witness = _verdict(problem, outcome.best_x[best], bool(outcome.feasible[best]))
     method_name = (variants[0].name if len(variants) == 1 else
                    " + ".join(f"{variant.name} x {count}"
                               for variant, count in zip(variants, found.n_restarts)))
@@ -423,6 +418,18 @@ def _witness(problem: Problem, x) -> tuple | None:
     name = (problem.world.obstacle_name(int(found.obstacle)) if found.obstacle >= 0
             else f"link {int(found.other_link) + 1}")
     return float(found.r), int(found.link), int(found.obstacle), float(found.distance), name
+
+
+def _verdict(problem: Problem, x, feasible: bool) -> tuple[bool, tuple | None]:
+    """``Result.certified`` and ``Result.witness`` of the best path x, which the search's
+    check called ``feasible``: a path free at the sampled check's samples alone is certified
+    here (and its witness is where ``certify`` finds it colliding, if it does)."""
+    if not feasible:
+        return False, _witness(problem, x)
+    if problem.collision == "certified":
+        return True, None
+    certificate = certify(problem, x)
+    return bool(certificate.free), _certified_witness(problem, certificate)
 
 
 def _certified_witness(problem: Problem, certificate) -> tuple | None:

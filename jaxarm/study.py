@@ -341,7 +341,7 @@ def _method_study(problem: Problem, variant: Variant, n_restarts: int, saved: Sa
         parts.append(part)
         seconds, compiling = seconds + chunk_seconds, compiling + chunk_compiling.seconds
         bar.finished(len(part.best_fitness), seconds=chunk_seconds - chunk_compiling.seconds,
-                     restarts_run=size)
+                     restarts_run=size, method_done=start + size >= n_restarts)
     return MethodStudy(variant=variant, restart_ids=np.arange(n_restarts),
                        outcome=parts[0].concatenate(*parts[1:]), seconds=seconds,
                        compile_seconds=compiling)
@@ -368,15 +368,18 @@ class _StudyProgress:
     def compiling(self, compiling: bool) -> None:
         self.bar.set_postfix_str("compiling" if compiling else "")
 
-    def finished(self, count: int, *, seconds: float, restarts_run: int) -> None:
+    def finished(self, count: int, *, seconds: float, restarts_run: int,
+                 method_done: bool) -> None:
         """``count`` more seeds done, in a chunk that ran ``restarts_run`` restarts in
-        ``seconds`` apart from compiling: the time left assumes the rest run as fast."""
+        ``seconds`` apart from compiling (the method's last when ``method_done``): the time
+        left assumes the rest run as fast."""
         self.done += count
         self.bar.update(count)
         if self.shown or count == self.total:  # shown by the bar, or a one-chunk study
             return
         left = (self.total - self.done) * seconds / restarts_run
-        methods = f" of {self.n_methods} methods (now {self.label})" if self.n_methods > 1 else ""
+        methods = (f" of {self.n_methods} methods ({self.label} "
+                   f"{'done' if method_done else 'running'})" if self.n_methods > 1 else "")
         LOGGER.info("%s%s: %s of %s seeds%s, %s", self.name,
                     "" if methods else f" {self.label}", f"{self.done:,}", f"{self.total:,}",
                     methods, f"about {_duration(left)} left" if left else "done")

@@ -149,12 +149,23 @@ def test_the_command_line_reports_stages_and_where_the_best_path_collides(tmp_pa
     saved = jaxarm.load_run(tmp_path / "run.json")
     assert saved.settings["max_stages"] == 1 and saved.result.witness is not None
     # a best path found at a higher degree is drawn with the problem at that degree
+    from benchmark_modules import load
+
+    s_bend = load("default_bench").s_bend()  # no free path at degree 6
+    jaxarm.save_scenario(s_bend, tmp_path / "s_bend.toml")
     climbed = subprocess.run(
-        [sys.executable, "-m", "jaxarm", "solve", str(scene), "--time-limit", "20",
-         "--particles", "2", "--iters", "2", "--plot", str(tmp_path / "motion.png"),
+        [sys.executable, "-m", "jaxarm", "solve", str(tmp_path / "s_bend.toml"),
+         "--time-limit", "30", "--particles", "4", "--iters", "10",
+         "--plot", str(tmp_path / "motion.png"), "--json", str(tmp_path / "climbed.json"),
          "--quiet"], capture_output=True, text=True, timeout=600)
     assert climbed.returncode == 0, climbed.stderr
     assert (tmp_path / "motion.png").stat().st_size > 0
+    # its record repeats it from the degree searched first, not the one it climbed to
+    saved = jaxarm.load_run(tmp_path / "climbed.json")
+    assert saved.problem.degree == s_bend.degree < saved.result.degree
+    again = jaxarm.solve(saved.problem, saved.method, **saved.settings)
+    assert again.degree == saved.result.degree
+    np.testing.assert_array_equal(again.best_x, saved.result.best_x)
     bad = subprocess.run([sys.executable, "-m", "jaxarm", "solve", "paper-case-2",
                           "--time-limit", "0"], capture_output=True, text=True, timeout=600)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "--time-limit" in bad.stderr

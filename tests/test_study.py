@@ -123,8 +123,8 @@ def test_progress_lines_count_every_methods_seeds_and_name_the_running_one(case2
                            **sizes)
     said = [record.getMessage() for record in caplog.records]
     assert [m.split(",")[0] for m in said] == [
-        f"paper-case-2: {done} of 18 seeds of 2 methods (now {label})"
-        for done, label in ((5, "A"), (9, "A"), (14, "C"), (18, "C"))]
+        f"paper-case-2: {done} of 18 seeds of 2 methods ({label})"
+        for done, label in ((5, "A running"), (9, "A done"), (14, "C running"), (18, "C done"))]
     assert said[-1].endswith(", done") and said[0].endswith(" left")
     caplog.clear()
     with caplog.at_level(logging.INFO, logger="jaxarm.study"):

@@ -35,6 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm._compile.padding import padded_size
 from jaxarm.model.world import CIRCLE_FIELDS, POLYGON_FIELDS, WorldArrays
 
 # The fields a block of listed slots carries, per kind: a circle's numbers alone (no valid
@@ -444,6 +445,12 @@ def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int
                 f"{kind}s": ()}
     first, rows = _distinct_blocks(blocks, n_slots)
     distinct = blocks[first // blocks.shape[1], first % blocks.shape[1]]
+    # Rows of padding alone, unread, up to ``padded_size`` (a power of two, or a multiple of
+    # 4,096): worlds of a few sizes share one program, and XLA's CPU code for the gathers ran
+    # up to a sixth slower on some row counts (``benchmarks/RESULTS.md``, *Decisions and
+    # negative results*, "The near tables' rows padded").
+    extra = padded_size(len(distinct)) - len(distinct)
+    distinct = np.concatenate([distinct, np.full((extra, block), n_slots, distinct.dtype)])
     numbers = []
     for name in names:
         values = np.asarray(getattr(world, name))
