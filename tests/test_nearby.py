@@ -306,6 +306,9 @@ def test_the_nearest_listed_slot_is_the_nearest_obstacle_for_shapely(rng, monkey
     distance from the slot's own numbers is shapely's nearest distance of every obstacle) and
     its value is that distance. Of the separating-axis bounds (refine's), the same bits
     whether a block is read by every link or by the few links that need it."""
+    # Small blocks: lists of several blocks, the later ones read by few links (gathered).
+    monkeypatch.setattr(nearby, "BLOCK", 4)
+    monkeypatch.setattr(nearby, "POLYGON_BLOCK", {"sampled": 2, "certified": 2})
     problem = mixed_problem(rng) if kind == "mixed" else corridor_problem(rng, count, kind)
     tables = problem.arrays.world.near
     theta = [jnp.asarray(rng.uniform(-3, 3, 400), jnp.float32) for _ in range(ARM.n_joints)]
