@@ -713,6 +713,11 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
         _run(args)
+    except BrokenPipeError:  # what reads the output stopped (``| head``): stop quietly, as
+        # Unix tools do, with the status of a process SIGPIPE ended; stdout to /dev/null so that
+        # Python's own flush at exit does not fail again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return _leave(141)
     except (ValueError, OSError) as error:
         if args.debug:
             raise

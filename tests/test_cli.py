@@ -403,3 +403,23 @@ def test_cli_says_on_stderr_when_it_compiles_unless_quiet(capsys):
     assert "jaxarm: compiling the search" in err and "jaxarm: compiled the search in" in err
     code, out, err = run_cli(capsys, "--quiet", "solve", "paper-case-2", *small, "--samples", "43")
     assert code == 0 and "fitness" in out and "compil" not in err
+
+
+def test_output_piped_into_a_reader_that_stops_ends_quietly(tmp_path):
+    """``jaxarm ... | head -1``: once the reader has gone, the command stops without an error
+    line, with the status of a process that SIGPIPE ended (the file is written). The reader
+    here is gone before the command writes (a pipe whose read end is closed)."""
+    import subprocess
+    import sys
+
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "jaxarm", "--quiet", "clutter", "open-space", "--count", "300",
+             "--kind", "triangles", "--clear-path", "-o", str(tmp_path / "c.toml")],
+            stdout=write, stderr=subprocess.PIPE, text=True, timeout=300)
+    finally:
+        os.close(write)
+    assert done.returncode == 141 and done.stderr == "", done.stderr
+    assert (tmp_path / "c.toml").stat().st_size > 0

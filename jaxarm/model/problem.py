@@ -317,7 +317,7 @@ class Problem:
     def device_arrays(self) -> ProblemArrays:
         """``arrays`` on JAX's default device, placed once per setting of ``jax_enable_x64``:
         a compiled call given NumPy arrays copies them to the device at every call (the near
-        tables of a world of 1,000 circles are about 42 MB), converted as
+        tables of a world of 1,000 circles are about 34 MB), converted as
         ``jax.device_put`` converts them (float64 to float32 unless x64 is on), so either
         gives the same bits. For the package's compiled calls from the host; placed eagerly
         even when first asked for inside a trace. With several devices (or processes), the
