@@ -434,9 +434,9 @@ def _verdict(problem: Problem, x, feasible: bool) -> tuple[bool, tuple | None]:
 
 def _certified_witness(problem: Problem, certificate) -> tuple | None:
     """``Result.witness`` of a path the sampled check calls free, where ``certify``'s
-    ``certificate`` finds it colliding between the samples; None otherwise (no certificate,
-    proved free, or undecided)."""
-    if certificate is None or not bool(certificate.colliding):
+    ``certificate`` finds it colliding between the samples; None otherwise (proved free, or
+    undecided)."""
+    if not bool(certificate.colliding):
         return None
     obstacle, other = int(certificate.witness_obstacle), int(certificate.witness_other_link)
     if obstacle < 0 and other < 0:  # a joint limit alone

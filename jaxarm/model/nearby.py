@@ -447,8 +447,8 @@ def _listed_numbers(world: WorldArrays, kind: str, lists: np.ndarray, block: int
     distinct = blocks[first // blocks.shape[1], first % blocks.shape[1]]
     # Rows of padding alone, unread, up to ``padded_size`` (a power of two, or a multiple of
     # 4,096): worlds of a few sizes share one program, and XLA's CPU code for the gathers ran
-    # up to a sixth slower on some row counts (``benchmarks/RESULTS.md``, *Decisions and
-    # negative results*, "The near tables' rows padded").
+    # slower on some row counts, the map's among them (``benchmarks/RESULTS.md``, *Decisions
+    # and negative results*, "Each link's tables list the cells it can reach").
     extra = padded_size(len(distinct)) - len(distinct)
     distinct = np.concatenate([distinct, np.full((extra, block), n_slots, distinct.dtype)])
     numbers = []
