@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import io
 import json
 import logging
@@ -396,7 +397,7 @@ _OVERRIDES = {"collision": "collision", "degree": "degree", "samples": "n_sample
 
 
 def _load(args):
-    from jaxarm.io.scenario_files import load_scenario
+    from jaxarm.io.scenario_files import load_scenario, obstacle_names, with_file_names
 
     problem = load_scenario(args.scenario)
     overrides = {field: getattr(args, flag) for flag, field in _OVERRIDES.items()
@@ -410,15 +411,16 @@ def _load(args):
                              "and --init-high too")
     try:
         return problem.replace(**overrides) if overrides else problem
-    except ValueError as combined:
+    except ValueError as combined:  # obstacles named as the scenario file names them
+        named = functools.partial(with_file_names, names=obstacle_names(args.scenario))
         flags = {field: f"--{flag.replace('_', '-')}" for flag, field in _OVERRIDES.items()
                  if field in overrides}
         for field, flag in flags.items():  # the flag that fails alone is the one to name
             try:
                 problem.replace(**{field: overrides[field]})
             except ValueError as error:
-                raise ValueError(f"{flag}: {error}") from None
-        raise ValueError(f"{', '.join(flags.values())}: {combined}") from None  # together
+                raise ValueError(f"{flag}: {named(str(error))}") from None
+        raise ValueError(f"{', '.join(flags.values())}: {named(str(combined))}") from None
 
 
 def _scenarios(args) -> None:

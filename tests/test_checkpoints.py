@@ -108,9 +108,11 @@ def test_a_folder_that_is_no_checkpoint_or_a_broken_chunk_is_named(case2, tmp_pa
     folder = tmp_path / "new" / "deeper"  # created with its parents
     study.escape_study(case2, ["A"], n_restarts=2, checkpoint=folder, **SIZES)
     (chunk,) = folder.glob("*.npz")
-    chunk.write_bytes(b"not a numpy file")
-    with pytest.raises(ValueError, match=rf"cannot read {chunk.name}: .*remove that file"):
-        study.escape_study(case2, ["A"], n_restarts=2, checkpoint=folder, **SIZES)
+    whole = chunk.read_bytes()
+    for broken in (b"not a numpy file", whole[:len(whole) // 2]):  # the second: a cut zip
+        chunk.write_bytes(broken)
+        with pytest.raises(ValueError, match=rf"cannot read {chunk.name}: .*remove that file"):
+            study.escape_study(case2, ["A"], n_restarts=2, checkpoint=folder, **SIZES)
     (folder / "study.json").write_text("{}")
     with pytest.raises(ValueError, match="study.json is not a jaxarm study checkpoint"):
         study.escape_study(case2, ["A"], n_restarts=2, checkpoint=folder, **SIZES)
@@ -127,8 +129,9 @@ def test_without_a_bar_each_chunk_logs_the_time_left(case2, caplog):
         study.escape_study(case2, ["A", "C"], n_restarts=6, chunk_size=3, progress=False,
                            **SIZES)
     lines = [r.getMessage() for r in caplog.records if r.name == "jaxarm.study"]
-    assert lines[0].startswith("paper-case-2 A: 3 of 12 seeds, about ") and "left" in lines[0]
-    assert lines[-1] == "paper-case-2 C: 12 of 12 seeds, done"
+    assert lines[0].startswith("paper-case-2: 3 of 12 seeds of 2 methods (A running), about ")
+    assert "left" in lines[0]
+    assert lines[-1] == "paper-case-2: 12 of 12 seeds of 2 methods (C done), done"
     assert len(lines) == 4
     assert study._duration(3725) == "1 h 02 min" and study._duration(200.4) == "3 min 20 s"
 

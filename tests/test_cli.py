@@ -423,3 +423,10 @@ def test_output_piped_into_a_reader_that_stops_ends_quietly(tmp_path):
         os.close(write)
     assert done.returncode == 141 and done.stderr == "", done.stderr
     assert (tmp_path / "c.toml").stat().st_size > 0
+
+
+def test_a_flag_that_breaks_a_posture_names_the_obstacle_as_the_scenario_file_does(capsys):
+    assert cli.main(["solve", "paper-case-1", "--margin", "0.5"]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("jaxarm: error: --margin: goal posture") and error.count("\n") == 1
+    assert "from obstacles[" in error and "circles[" not in error

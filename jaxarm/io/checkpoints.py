@@ -16,6 +16,7 @@ import json
 import os
 import pathlib
 import re
+import zipfile
 from typing import NamedTuple, Sequence
 
 import jax
@@ -140,10 +141,10 @@ class StudyCheckpoint:
 
     def _read(self, path: pathlib.Path, count: int) -> tuple[RestartOutcome, float, float]:
         try:
-            with np.load(path) as data:
+            with open(path, "rb") as handle, np.load(handle) as data:  # closed if it fails
                 outcome = RestartOutcome(*(data[name] for name in RestartOutcome._fields))
                 seconds, compiling = float(data["seconds"]), float(data["compile_seconds"])
-        except (OSError, ValueError, KeyError) as error:
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as error:
             raise ValueError(f"checkpoint {str(self.folder)!r}: cannot read {path.name}: "
                              f"{error}; remove that file to run its restarts again") from None
         if any(len(field) != count for field in outcome):

@@ -299,10 +299,14 @@ def _problem(data: dict, default_name: str, folder: pathlib.Path = pathlib.Path(
                        joint_limits=arm_table.get("joint_limits"), **fields)
     except ValueError as error:  # named as the file names it: search.samples, not n_samples,
         message = renamed(str(error), _FIELD_KEYS)  # and obstacles[3], not boxes[0]
-        if obstacle_names:
-            message = re.sub(r"\b(circles|boxes|polygons|segments)\[\d+\]",
-                             lambda m: obstacle_names.get(m.group(), m.group()), message)
-        raise ScenarioError(message) from None
+        raise ScenarioError(with_file_names(message, obstacle_names)) from None
+
+
+def with_file_names(message: str, names: dict) -> str:
+    """``message`` with ``World``'s obstacle names (``"boxes[0]"``) as the scenario file
+    names them (``names``: ``obstacle_names``' map; a name it lacks stays)."""
+    return re.sub(r"\b(circles|boxes|polygons|segments)\[\d+\]",
+                  lambda m: names.get(m.group(), m.group()), message)
 
 
 def problem_from_table(table: dict) -> Problem:
