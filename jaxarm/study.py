@@ -378,11 +378,13 @@ class _StudyProgress:
         if self.shown or count == self.total:  # shown by the bar, or a one-chunk study
             return
         left = (self.total - self.done) * seconds / restarts_run
-        methods = (f" of {self.n_methods} methods ({self.label} "
-                   f"{'done' if method_done else 'running'})" if self.n_methods > 1 else "")
-        LOGGER.info("%s%s: %s of %s seeds%s, %s", self.name,
-                    "" if methods else f" {self.label}", f"{self.done:,}", f"{self.total:,}",
-                    methods, f"about {_duration(left)} left" if left else "done")
+        counted = f"{self.done:,} of {self.total:,} seeds"
+        if self.n_methods > 1:
+            state = "done" if method_done else "running"
+            line = f"{self.name}: {counted} of {self.n_methods} methods ({self.label} {state})"
+        else:
+            line = f"{self.name} {self.label}: {counted}"
+        LOGGER.info("%s, %s", line, f"about {_duration(left)} left" if left else "done")
 
     def close(self) -> None:
         self.bar.close()

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm._compile.jit import jit
-from jaxarm._compile.padding import on_padded_rows, padded_size
+from jaxarm._compile.padding import on_padded_rows
 from jaxarm.checks import collision as collision_lib
 from jaxarm.model import path, self_collision
 from jaxarm.model import world as world_lib
@@ -123,14 +123,12 @@ def clearance_along(problem: Problem, x, r):
       ``(distance, obstacle, other_link)``, NumPy arrays of shape (n_r, n_joints) (-1:
       none).
     """
-    theta = np.asarray(joint_path(problem, x, r))
     arrays = problem.device_arrays()
     # Postures padded to a few counts, at least ``POSTURES_PADDED``: a summary's instants and a
     # figure's share one compiled program.
-    extra = padded_size(len(theta), POSTURES_PADDED) - len(theta)
-    padded = np.concatenate([theta, np.repeat(theta[:1], extra, axis=0)])
-    found = _link_distances(arrays.lengths, arrays.world, padded)
-    distance, slot, other = (np.asarray(a)[:len(theta)] for a in found)
+    found = on_padded_rows(functools.partial(_link_distances, arrays.lengths, arrays.world),
+                           joint_path(problem, x, r), POSTURES_PADDED)
+    distance, slot, other = (np.asarray(a) for a in found)
     return distance, obstacle_index(problem, slot), other
 
 

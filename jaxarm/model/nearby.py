@@ -196,9 +196,10 @@ def build(world: WorldArrays, lengths, reach, collision: str = "certified") -> N
     # 2 |t| sin(half_bin / 2)), plus the reach. Each link lists the cells its midpoint can
     # reach alone (the others keep empty lists).
     spreads = [half_diagonal + length * np.sin(0.5 * half_bin) for length in lengths]
+    reachable = [_reachable_cells(centres, cell, lengths[:link + 1], slack)
+                 for link in range(len(lengths))]
     pairs = {(kind, link): _near_pairs(centres, low, high, lengths[link],
-                                       spreads[link] + reaches[-1] + slack,
-                                       _reachable_cells(centres, cell, lengths[:link + 1], slack))
+                                       spreads[link] + reaches[-1] + slack, reachable[link])
              for kind, (low, high) in boxes.items() for link in range(len(lengths))}
 
     def pairs_at(reach: float) -> dict:
