@@ -125,7 +125,9 @@ def pair_separations(links: list, xp=jnp) -> list:
 def stacked_pair_separations(links: list):
     """``pair_separations`` as one array of shape (n_pairs, ...), computed with the pairs on
     its leading axis: one loop however many pairs, which compiles far faster than the pairs
-    written out (for code where compiling outweighs running: a witness, a figure)."""
+    written out (for code where compiling outweighs running: a witness, a figure;
+    ``benchmarks/RESULTS.md``, *Decisions and negative results*, "The distances along a path
+    with the links and link pairs on array axes")."""
     first, other = np.array(pairs(len(links))).T
     coordinates = [jnp.stack(jnp.broadcast_arrays(*coordinate))  # (n_links, ...)
                    for coordinate in zip(*links)]
